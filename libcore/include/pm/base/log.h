@@ -1,0 +1,54 @@
+#pragma once
+// People-facing messages on stderr: verbosity levels, stage timers, progress.
+#include <chrono>
+#include <cstddef>
+#include <string>
+
+namespace pm {
+
+enum class Verbosity { quiet = 0, normal = 1, verbose = 2 };
+
+void set_verbosity(Verbosity v);
+Verbosity verbosity();
+/// Name printed before messages ("particles: ...").
+void set_tool_name(const std::string& name);
+const std::string& tool_name();
+
+/// A line on stderr at normal verbosity ("tool: msg").
+void info(const std::string& msg);
+/// A line on stderr only with -v.
+void debug(const std::string& msg);
+/// A warning on stderr unless -q.
+void warn(const std::string& msg);
+
+/// Wall-clock stopwatch.
+class Stopwatch {
+ public:
+  Stopwatch() : start_(std::chrono::steady_clock::now()) {}
+  double seconds() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
+  void reset() { start_ = std::chrono::steady_clock::now(); }
+
+ private:
+  std::chrono::steady_clock::time_point start_;
+};
+
+/// Progress of a long loop: a bar when stderr is a terminal, otherwise a plain
+/// line every few seconds; nothing when quiet. Cheap to call every iteration.
+class Progress {
+ public:
+  Progress(std::string label, std::size_t total);
+  ~Progress();
+  void update(std::size_t done, const std::string& detail = {});
+  void finish();
+
+ private:
+  std::string label_;
+  std::size_t total_;
+  Stopwatch clock_;
+  double last_ = -1;
+  bool finished_ = false;
+};
+
+}  // namespace pm

@@ -1,0 +1,107 @@
+#pragma once
+// A 3-D scalar grid with world geometry, of any voxel type.
+//
+// World position of voxel (i,j,k): origin + D * (i,j,k), where D is the 3x3
+// matrix whose column a is the world displacement of one step along axis a
+// (NRRD "space directions"; its length is the spacing of that axis). Voxels
+// are samples at nodes ("cell-centered" data are treated as node samples at
+// the cell centres). Axis 0 varies fastest in memory.
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "pm/base/vec.h"
+
+namespace pm {
+
+enum class VoxelType { u8, i8, u16, i16, u32, i32, u64, i64, f32, f64 };
+
+/// "uint8", "int16", "float", ... (NRRD spelling).
+const char* voxel_type_name(VoxelType t);
+/// Bytes per voxel.
+std::size_t voxel_size(VoxelType t);
+bool is_integer(VoxelType t);
+/// Parse a name as printed by voxel_type_name (also accepts "u8", "f32", ...).
+/// \throw UsageError for an unknown name.
+VoxelType parse_voxel_type(const std::string& name);
+
+struct Dims {
+  std::size_t nx = 0, ny = 0, nz = 0;
+  std::size_t operator[](int a) const { return a == 0 ? nx : (a == 1 ? ny : nz); }
+  std::size_t count() const { return nx * ny * nz; }
+  bool operator==(const Dims& o) const { return nx == o.nx && ny == o.ny && nz == o.nz; }
+};
+
+/// Index-to-world mapping of a grid.
+struct Geometry {
+  Vec3 origin;                        ///< world position of voxel (0,0,0)
+  Mat3 directions = Mat3::identity(); ///< column a: world step along axis a
+  /// Spacing of axis a (length of column a), world units.
+  double spacing(int a) const { return norm(directions.column(a)); }
+  Vec3 index_to_world(const Vec3& ijk) const { return origin + directions * ijk; }
+  Vec3 world_to_index(const Vec3& x) const;
+  /// True when the directions are axis-aligned (diagonal matrix).
+  bool axis_aligned() const;
+  static Geometry with_spacing(double sx, double sy, double sz, Vec3 origin = {});
+};
+
+/// Volume: dims, geometry, and a typed voxel buffer.
+class Volume {
+ public:
+  Volume() = default;
+  /// Zero-filled volume. \throw InputError when a dimension is 0 or the
+  /// voxel count overflows.
+  Volume(VoxelType type, Dims dims, Geometry geometry = {});
+
+  VoxelType type() const { return type_; }
+  const Dims& dims() const { return dims_; }
+  const Geometry& geometry() const { return geometry_; }
+  Geometry& geometry() { return geometry_; }
+  std::size_t count() const { return dims_.count(); }
+  bool empty() const { return count() == 0; }
+
+  std::size_t index(std::size_t i, std::size_t j, std::size_t k) const {
+    return i + dims_.nx * (j + dims_.ny * k);
+  }
+  /// Voxel value converted to double (exact for all types but 64-bit ints > 2^53).
+  double get(std::size_t idx) const;
+  double get(std::size_t i, std::size_t j, std::size_t k) const { return get(index(i, j, k)); }
+  /// Store v converted to the voxel type (rounded and clamped for integer types).
+  void set(std::size_t idx, double v);
+  void set(std::size_t i, std::size_t j, std::size_t k, double v) { set(index(i, j, k), v); }
+
+  void* raw() { return bytes_.data(); }
+  const void* raw() const { return bytes_.data(); }
+  std::size_t byte_size() const { return bytes_.size(); }
+
+  /// Typed access; \throw Error when T does not match type().
+  template <class T> T* data();
+  template <class T> const T* data() const;
+
+  /// All voxels as float / double (copy).
+  std::vector<float> to_float() const;
+  std::vector<double> to_double() const;
+  /// Copy converted to another voxel type.
+  Volume converted(VoxelType t) const;
+
+  /// World bounding box of the voxel nodes.
+  Box world_bounds() const;
+
+ private:
+  VoxelType type_ = VoxelType::f32;
+  Dims dims_;
+  Geometry geometry_;
+  std::vector<unsigned char> bytes_;
+};
+
+/// Throws InputError naming `what` (usually a file name) if any voxel is NaN/Inf.
+void require_finite(const Volume& v, const std::string& what);
+
+/// min and max voxel value.
+struct ValueRange {
+  double lo = 0, hi = 0;
+};
+ValueRange value_range(const Volume& v);
+
+}  // namespace pm

@@ -1,0 +1,236 @@
+#include "pm/base/volume.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <sstream>
+
+#include "pm/base/error.h"
+
+namespace pm {
+
+const char* voxel_type_name(VoxelType t) {
+  switch (t) {
+    case VoxelType::u8: return "uint8";
+    case VoxelType::i8: return "int8";
+    case VoxelType::u16: return "uint16";
+    case VoxelType::i16: return "int16";
+    case VoxelType::u32: return "uint32";
+    case VoxelType::i32: return "int32";
+    case VoxelType::u64: return "uint64";
+    case VoxelType::i64: return "int64";
+    case VoxelType::f32: return "float";
+    case VoxelType::f64: return "double";
+  }
+  return "?";
+}
+
+std::size_t voxel_size(VoxelType t) {
+  switch (t) {
+    case VoxelType::u8: case VoxelType::i8: return 1;
+    case VoxelType::u16: case VoxelType::i16: return 2;
+    case VoxelType::u32: case VoxelType::i32: case VoxelType::f32: return 4;
+    case VoxelType::u64: case VoxelType::i64: case VoxelType::f64: return 8;
+  }
+  return 0;
+}
+
+bool is_integer(VoxelType t) { return t != VoxelType::f32 && t != VoxelType::f64; }
+
+VoxelType parse_voxel_type(const std::string& n) {
+  static const std::pair<const char*, VoxelType> names[] = {
+      {"uint8", VoxelType::u8},   {"u8", VoxelType::u8},     {"uchar", VoxelType::u8},
+      {"int8", VoxelType::i8},    {"i8", VoxelType::i8},     {"uint16", VoxelType::u16},
+      {"u16", VoxelType::u16},    {"ushort", VoxelType::u16}, {"int16", VoxelType::i16},
+      {"i16", VoxelType::i16},    {"short", VoxelType::i16}, {"uint32", VoxelType::u32},
+      {"u32", VoxelType::u32},    {"int32", VoxelType::i32}, {"i32", VoxelType::i32},
+      {"int", VoxelType::i32},    {"uint64", VoxelType::u64}, {"u64", VoxelType::u64},
+      {"int64", VoxelType::i64},  {"i64", VoxelType::i64},   {"float", VoxelType::f32},
+      {"f32", VoxelType::f32},    {"double", VoxelType::f64}, {"f64", VoxelType::f64}};
+  for (const auto& [s, t] : names)
+    if (n == s) return t;
+  throw UsageError("unknown voxel type \"" + n +
+                   "\"; expected one of uint8 int8 uint16 int16 uint32 int32 uint64 int64 float double");
+}
+
+Vec3 Geometry::world_to_index(const Vec3& x) const { return inverse(directions) * (x - origin); }
+
+bool Geometry::axis_aligned() const {
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      if (i != j && directions.m[i][j] != 0.0) return false;
+  return true;
+}
+
+Geometry Geometry::with_spacing(double sx, double sy, double sz, Vec3 origin) {
+  Geometry g;
+  g.origin = origin;
+  g.directions = Mat3::diag(sx, sy, sz);
+  return g;
+}
+
+Volume::Volume(VoxelType type, Dims dims, Geometry geometry)
+    : type_(type), dims_(dims), geometry_(geometry) {
+  if (dims.nx == 0 || dims.ny == 0 || dims.nz == 0) {
+    std::ostringstream m;
+    m << "volume size " << dims.nx << "x" << dims.ny << "x" << dims.nz
+      << " has a zero-size axis; expected every axis >= 1";
+    throw InputError(m.str());
+  }
+  const std::size_t limit = std::numeric_limits<std::size_t>::max() / 8;
+  if (dims.nx > limit / dims.ny || dims.nx * dims.ny > limit / dims.nz) {
+    std::ostringstream m;
+    m << "volume size " << dims.nx << "x" << dims.ny << "x" << dims.nz << " overflows";
+    throw InputError(m.str());
+  }
+  if (std::fabs(determinant(geometry.directions)) <= 0 ||
+      !std::isfinite(determinant(geometry.directions)))
+    throw InputError("volume geometry: space directions are singular or non-finite; expected three independent axes with spacing > 0");
+  bytes_.assign(dims.count() * voxel_size(type), 0);
+}
+
+namespace {
+template <class F>
+decltype(auto) dispatch(VoxelType t, F&& f) {
+  switch (t) {
+    case VoxelType::u8: return f(std::uint8_t{});
+    case VoxelType::i8: return f(std::int8_t{});
+    case VoxelType::u16: return f(std::uint16_t{});
+    case VoxelType::i16: return f(std::int16_t{});
+    case VoxelType::u32: return f(std::uint32_t{});
+    case VoxelType::i32: return f(std::int32_t{});
+    case VoxelType::u64: return f(std::uint64_t{});
+    case VoxelType::i64: return f(std::int64_t{});
+    case VoxelType::f32: return f(float{});
+    case VoxelType::f64: return f(double{});
+  }
+  return f(float{});
+}
+
+template <class T>
+T convert_to(double v) {
+  if constexpr (std::is_floating_point_v<T>) {
+    return static_cast<T>(v);
+  } else {
+    if (std::isnan(v)) return T(0);
+    const double r = std::nearbyint(v);
+    if (r <= static_cast<double>(std::numeric_limits<T>::lowest())) return std::numeric_limits<T>::lowest();
+    if (r >= static_cast<double>(std::numeric_limits<T>::max())) return std::numeric_limits<T>::max();
+    return static_cast<T>(r);
+  }
+}
+template <class T> constexpr VoxelType type_of();
+template <> constexpr VoxelType type_of<std::uint8_t>() { return VoxelType::u8; }
+template <> constexpr VoxelType type_of<std::int8_t>() { return VoxelType::i8; }
+template <> constexpr VoxelType type_of<std::uint16_t>() { return VoxelType::u16; }
+template <> constexpr VoxelType type_of<std::int16_t>() { return VoxelType::i16; }
+template <> constexpr VoxelType type_of<std::uint32_t>() { return VoxelType::u32; }
+template <> constexpr VoxelType type_of<std::int32_t>() { return VoxelType::i32; }
+template <> constexpr VoxelType type_of<std::uint64_t>() { return VoxelType::u64; }
+template <> constexpr VoxelType type_of<std::int64_t>() { return VoxelType::i64; }
+template <> constexpr VoxelType type_of<float>() { return VoxelType::f32; }
+template <> constexpr VoxelType type_of<double>() { return VoxelType::f64; }
+}  // namespace
+
+double Volume::get(std::size_t idx) const {
+  return dispatch(type_, [&](auto tag) -> double {
+    using T = decltype(tag);
+    T v;
+    std::memcpy(&v, bytes_.data() + idx * sizeof(T), sizeof(T));
+    return static_cast<double>(v);
+  });
+}
+
+void Volume::set(std::size_t idx, double value) {
+  dispatch(type_, [&](auto tag) {
+    using T = decltype(tag);
+    const T v = convert_to<T>(value);
+    std::memcpy(bytes_.data() + idx * sizeof(T), &v, sizeof(T));
+    return 0;
+  });
+}
+
+template <class T>
+T* Volume::data() {
+  if (type_of<T>() != type_)
+    throw Error(std::string("Volume::data: voxel type is ") + voxel_type_name(type_) + ", requested " +
+                voxel_type_name(type_of<T>()));
+  return reinterpret_cast<T*>(bytes_.data());
+}
+template <class T>
+const T* Volume::data() const {
+  return const_cast<Volume*>(this)->data<T>();
+}
+#define PM_INST(T) template T* Volume::data<T>(); template const T* Volume::data<T>() const;
+PM_INST(std::uint8_t) PM_INST(std::int8_t) PM_INST(std::uint16_t) PM_INST(std::int16_t)
+PM_INST(std::uint32_t) PM_INST(std::int32_t) PM_INST(std::uint64_t) PM_INST(std::int64_t)
+PM_INST(float) PM_INST(double)
+#undef PM_INST
+
+std::vector<float> Volume::to_float() const {
+  std::vector<float> out(count());
+  dispatch(type_, [&](auto tag) {
+    using T = decltype(tag);
+    const T* p = reinterpret_cast<const T*>(bytes_.data());
+    for (std::size_t i = 0; i < out.size(); ++i) out[i] = static_cast<float>(p[i]);
+    return 0;
+  });
+  return out;
+}
+
+std::vector<double> Volume::to_double() const {
+  std::vector<double> out(count());
+  dispatch(type_, [&](auto tag) {
+    using T = decltype(tag);
+    const T* p = reinterpret_cast<const T*>(bytes_.data());
+    for (std::size_t i = 0; i < out.size(); ++i) out[i] = static_cast<double>(p[i]);
+    return 0;
+  });
+  return out;
+}
+
+Volume Volume::converted(VoxelType t) const {
+  Volume out(t, dims_, geometry_);
+  const std::size_t n = count();
+  for (std::size_t i = 0; i < n; ++i) out.set(i, get(i));
+  return out;
+}
+
+Box Volume::world_bounds() const {
+  Box b;
+  for (int c = 0; c < 8; ++c) {
+    Vec3 ijk((c & 1) ? dims_.nx - 1.0 : 0.0, (c & 2) ? dims_.ny - 1.0 : 0.0, (c & 4) ? dims_.nz - 1.0 : 0.0);
+    b.extend(geometry_.index_to_world(ijk));
+  }
+  return b;
+}
+
+void require_finite(const Volume& v, const std::string& what) {
+  if (is_integer(v.type())) return;
+  const std::size_t n = v.count();
+  for (std::size_t i = 0; i < n; ++i) {
+    const double x = v.get(i);
+    if (!std::isfinite(x)) {
+      const std::size_t ii = i % v.dims().nx, jj = (i / v.dims().nx) % v.dims().ny,
+                        kk = i / (v.dims().nx * v.dims().ny);
+      std::ostringstream m;
+      m << what << ": voxel (" << ii << "," << jj << "," << kk << ") is " << x
+        << "; expected finite values";
+      throw InputError(m.str());
+    }
+  }
+}
+
+ValueRange value_range(const Volume& v) {
+  ValueRange r{std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
+  const std::size_t n = v.count();
+  for (std::size_t i = 0; i < n; ++i) {
+    const double x = v.get(i);
+    r.lo = std::min(r.lo, x);
+    r.hi = std::max(r.hi, x);
+  }
+  return r;
+}
+
+}  // namespace pm

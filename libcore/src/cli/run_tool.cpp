@@ -1,0 +1,116 @@
+#include "pm/cli/run_tool.h"
+
+#include <tbb/global_control.h>
+
+#include <csignal>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <new>
+#include <thread>
+
+#include "pm/base/atomic_file.h"
+#include "pm/base/error.h"
+#include "pm/base/log.h"
+#include "pm/base/stats.h"
+
+namespace pm {
+
+const char* version_string() { return PM_VERSION; }
+
+namespace {
+void on_signal(int sig) {
+  remove_pending_temp_files();
+  std::signal(sig, SIG_DFL);
+  std::raise(sig);
+}
+
+class HelpFormatter : public CLI::Formatter {
+ public:
+  explicit HelpFormatter(std::string example) : example_(std::move(example)) {}
+  std::string make_footer(const CLI::App* app) const override {
+    std::string f = CLI::Formatter::make_footer(app);
+    return f + "\nExample:\n  " + example_ + "\n";
+  }
+
+ private:
+  std::string example_;
+};
+}  // namespace
+
+Tool::Tool(std::string name, std::string description, std::string example)
+    : app(description, name), name_(std::move(name)) {
+  app.formatter(std::make_shared<HelpFormatter>(std::move(example)));
+  app.get_formatter()->column_width(34);
+  app.add_flag("-v,--verbose", flags.verbose, "Print stage timings and details on stderr");
+  app.add_flag("-q,--quiet", flags.quiet, "Print nothing but errors");
+  app.add_option("--stats", flags.stats_path, "Write run statistics as one JSON object to FILE ('-' = stdout)");
+  app.add_option("--threads", flags.threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
+  app.add_option("--seed", flags.seed, "Random seed; same seed and threads give identical output")
+      ->capture_default_str();
+  app.set_version_flag("--version", std::string(name_) + " (particlemesh) " + PM_VERSION);
+}
+
+int Tool::run(int argc, char** argv, const std::function<void()>& body) {
+  set_tool_name(name_);
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::Success& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::cerr << name_ << ": usage error: " << e.what() << "\n"
+              << "Run with --help for more information.\n";
+    return kExitUsage;
+  }
+  set_verbosity(flags.quiet ? Verbosity::quiet : (flags.verbose ? Verbosity::verbose : Verbosity::normal));
+  const int threads = flags.threads > 0 ? flags.threads : int(std::max(1u, std::thread::hardware_concurrency()));
+  tbb::global_control control(tbb::global_control::max_allowed_parallelism, std::size_t(threads));
+
+  Json& s = stats();
+  s["tool"] = name_;
+  s["version"] = PM_VERSION;
+  s["threads"] = threads;
+  s["seed"] = flags.seed;
+  int code = kExitOk;
+  Stopwatch total;
+  try {
+    body();
+  } catch (const UsageError& e) {
+    std::cerr << name_ << ": usage error: " << e.what() << "\n";
+    return kExitUsage;
+  } catch (const CheckFailed& e) {
+    std::cerr << name_ << ": check failed: " << e.what() << "\n";
+    code = kExitCheck;
+  } catch (const std::bad_alloc&) {
+    std::cerr << name_ << ": error: out of memory\n";
+    return kExitFailure;
+  } catch (const std::exception& e) {
+    std::cerr << name_ << ": error: " << e.what() << "\n";
+    return kExitFailure;
+  }
+  add_seconds("total", total.seconds());
+  if (!flags.stats_path.empty()) {
+    const std::string text = s.dump(2) + "\n";
+    if (flags.stats_path == "-") {
+      std::cout << text;
+      std::cout.flush();
+    } else {
+      try {
+        write_atomically(flags.stats_path, [&](const std::string& tmp) {
+          std::ofstream f(tmp);
+          f << text;
+          if (!f) throw IoError(quote(flags.stats_path) + ": cannot write stats");
+        });
+      } catch (const std::exception& e) {
+        std::cerr << name_ << ": error: " << e.what() << "\n";
+        return kExitFailure;
+      }
+    }
+  }
+  return code;
+}
+
+}  // namespace pm
