@@ -1,1 +1,71 @@
+#include "pm/ops/labels.h"
+
 #include <gtest/gtest.h>
+
+#include "pm/base/error.h"
+
+namespace pm {
+namespace {
+
+Volume small_labels() {
+  Volume v(VoxelType::u8, Dims{4, 3, 2});
+  for (std::size_t i = 0; i < v.count(); ++i) v.set(i, double(i % 5));  // labels 0..4
+  return v;
+}
+
+TEST(Labels, ParseMergeSpec) {
+  const auto r = parse_merge_spec("1,2:1 3-4:2;7:0");
+  ASSERT_EQ(r.size(), 3u);
+  EXPECT_EQ(r[0].from, (std::vector<std::int64_t>{1, 2}));
+  EXPECT_EQ(r[0].to, 1);
+  EXPECT_EQ(r[1].from, (std::vector<std::int64_t>{3, 4}));
+  EXPECT_EQ(r[2].to, 0);
+  EXPECT_THROW(parse_merge_spec("1,2"), UsageError);
+  EXPECT_THROW(parse_merge_spec("1:2 1:3"), UsageError);
+  EXPECT_THROW(parse_merge_spec("a:2"), UsageError);
+  EXPECT_THROW(parse_label_list(""), UsageError);
+}
+
+TEST(Labels, CountsMaskMerge) {
+  const Volume v = small_labels();
+  const auto c = label_counts(v);
+  ASSERT_EQ(c.size(), 5u);
+  std::size_t total = 0;
+  for (const auto& [l, n] : c) total += n;
+  EXPECT_EQ(total, v.count());
+  EXPECT_EQ(c.at(0), 5u);  // 24 voxels, i % 5 == 0 for i = 0,5,10,15,20
+
+  const Volume m = label_mask(v, {1, 3});
+  EXPECT_EQ(m.type(), VoxelType::u8);
+  std::size_t ones = 0;
+  for (std::size_t i = 0; i < m.count(); ++i) ones += m.get(i) == 1.0;
+  EXPECT_EQ(ones, c.at(1) + c.at(3));
+  EXPECT_THROW(label_mask(v, {9}), InputError);
+
+  const Volume g = merge_labels(v, parse_merge_spec("1,2:1 3,4:300"));
+  EXPECT_EQ(g.type(), VoxelType::i32);  // 300 does not fit uint8
+  const auto gc = label_counts(g);
+  EXPECT_EQ(gc.size(), 3u);
+  EXPECT_EQ(gc.at(1), c.at(1) + c.at(2));
+  EXPECT_EQ(gc.at(300), c.at(3) + c.at(4));
+}
+
+TEST(Labels, RejectsNonIntegerData) {
+  Volume v(VoxelType::f32, Dims{2, 2, 2});
+  v.set(3, 0.5);
+  EXPECT_THROW(require_labels(v, "x"), InputError);
+  EXPECT_THROW(label_mask(v, {0}), InputError);
+  Volume w(VoxelType::f32, Dims{2, 2, 2});
+  w.set(3, 2.0);
+  EXPECT_NO_THROW(require_labels(w, "x"));
+}
+
+TEST(Labels, TooManyDistinctValues) {
+  Volume v(VoxelType::i32, Dims{100, 10, 1});
+  for (std::size_t i = 0; i < v.count(); ++i) v.set(i, double(i));
+  EXPECT_THROW(label_counts(v, 100), InputError);
+  EXPECT_EQ(label_counts(v).size(), 1000u);
+}
+
+}  // namespace
+}  // namespace pm

@@ -1,1 +1,161 @@
-// stub: to be implemented
+#include "pm/ops/labels.h"
+
+#include <cmath>
+#include <limits>
+#include <set>
+#include <sstream>
+#include <unordered_map>
+
+#include "pm/base/error.h"
+
+namespace pm {
+namespace {
+std::int64_t parse_int(const std::string& tok, const std::string& context) {
+  std::size_t pos = 0;
+  long long v = 0;
+  try {
+    v = std::stoll(tok, &pos);
+  } catch (const std::exception&) {
+    pos = 0;
+  }
+  if (tok.empty() || pos != tok.size())
+    throw UsageError(context + ": \"" + tok + "\" is not an integer label");
+  return v;
+}
+
+std::vector<std::string> split(const std::string& s, const std::string& seps) {
+  std::vector<std::string> out;
+  std::string cur;
+  for (char c : s) {
+    if (seps.find(c) != std::string::npos) {
+      if (!cur.empty()) out.push_back(cur);
+      cur.clear();
+    } else {
+      cur += c;
+    }
+  }
+  if (!cur.empty()) out.push_back(cur);
+  return out;
+}
+}  // namespace
+
+std::vector<std::int64_t> parse_label_list(const std::string& spec) {
+  std::vector<std::int64_t> out;
+  for (const std::string& tok : split(spec, ", ")) {
+    const auto dash = tok.find('-', 1);
+    if (dash != std::string::npos) {
+      const std::int64_t a = parse_int(tok.substr(0, dash), "label list"),
+                         b = parse_int(tok.substr(dash + 1), "label list");
+      if (b < a || b - a > 1000000) throw UsageError("label list: bad range \"" + tok + "\"; expected a-b with a <= b");
+      for (std::int64_t v = a; v <= b; ++v) out.push_back(v);
+    } else {
+      out.push_back(parse_int(tok, "label list"));
+    }
+  }
+  if (out.empty()) throw UsageError("label list \"" + spec + "\" is empty; expected e.g. \"2,41\" or \"2-5,7\"");
+  return out;
+}
+
+std::vector<MergeRule> parse_merge_spec(const std::string& spec) {
+  std::vector<MergeRule> rules;
+  for (const std::string& r : split(spec, " ;")) {
+    const auto colon = r.find(':');
+    if (colon == std::string::npos || colon == 0 || colon + 1 == r.size())
+      throw UsageError("merge rule \"" + r + "\" is malformed; expected \"a,b,...:target\", e.g. \"1,2:1 3,4:2\"");
+    MergeRule m;
+    m.from = parse_label_list(r.substr(0, colon));
+    m.to = parse_int(r.substr(colon + 1), "merge rule \"" + r + "\"");
+    rules.push_back(std::move(m));
+  }
+  if (rules.empty()) throw UsageError("merge spec is empty; expected e.g. \"1,2:1 3,4:2\"");
+  std::set<std::int64_t> seen;
+  for (const auto& r : rules)
+    for (auto v : r.from)
+      if (!seen.insert(v).second)
+        throw UsageError("merge spec: label " + std::to_string(v) + " appears in two rules; expected each label once");
+  return rules;
+}
+
+void require_labels(const Volume& v, const std::string& what) {
+  if (is_integer(v.type())) return;
+  const std::size_t n = v.count();
+  for (std::size_t i = 0; i < n; ++i) {
+    const double x = v.get(i);
+    if (!std::isfinite(x) || x != std::floor(x) || std::fabs(x) > 9e15) {
+      std::ostringstream m;
+      m << what << ": voxel " << i << " has value " << x << "; expected integer labels (a label map)";
+      throw InputError(m.str());
+    }
+  }
+}
+
+std::map<std::int64_t, std::size_t> label_counts(const Volume& v, std::size_t max_labels) {
+  require_labels(v, "label_counts");
+  std::unordered_map<std::int64_t, std::size_t> counts;
+  const std::size_t n = v.count();
+  for (std::size_t i = 0; i < n; ++i) {
+    ++counts[std::int64_t(v.get(i))];
+    if (counts.size() > max_labels) {
+      throw InputError("label_counts: more than " + std::to_string(max_labels) +
+                       " distinct values; expected a label map");
+    }
+  }
+  return {counts.begin(), counts.end()};
+}
+
+Volume label_mask(const Volume& v, const std::vector<std::int64_t>& which, const std::string& what) {
+  require_labels(v, what);
+  const std::set<std::int64_t> want(which.begin(), which.end());
+  Volume out(VoxelType::u8, v.dims(), v.geometry());
+  std::uint8_t* o = out.data<std::uint8_t>();
+  const std::size_t n = v.count();
+  std::size_t inside = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const bool in = want.count(std::int64_t(v.get(i))) > 0;
+    o[i] = in;
+    inside += in;
+  }
+  if (inside == 0) {
+    std::ostringstream m;
+    m << what << ": none of the labels";
+    for (auto w : which) m << " " << w;
+    m << " occurs; labels present:";
+    std::size_t shown = 0;
+    for (const auto& [l, c] : label_counts(v)) {
+      if (shown++ == 32) { m << " ..."; break; }
+      m << " " << l;
+      (void)c;
+    }
+    throw InputError(m.str());
+  }
+  return out;
+}
+
+Volume merge_labels(const Volume& v, const std::vector<MergeRule>& rules) {
+  require_labels(v, "merge_labels");
+  std::unordered_map<std::int64_t, std::int64_t> map;
+  std::int64_t lo = std::numeric_limits<std::int64_t>::max(), hi = std::numeric_limits<std::int64_t>::min();
+  for (const auto& r : rules) {
+    for (auto f : r.from) map[f] = r.to;
+    lo = std::min(lo, r.to);
+    hi = std::max(hi, r.to);
+  }
+  VoxelType t = v.type();
+  const bool fits = !is_integer(t) || [&] {
+    Volume probe(t, Dims{1, 1, 1});
+    probe.set(0, double(lo));
+    if (probe.get(0) != double(lo)) return false;
+    probe.set(0, double(hi));
+    return probe.get(0) == double(hi);
+  }();
+  if (!fits) t = VoxelType::i32;
+  Volume out = t == v.type() ? v : v.converted(t);
+  const std::size_t n = v.count();
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto it = map.find(std::int64_t(v.get(i)));
+    if (it != map.end()) out.set(i, double(it->second));
+  }
+  return out;
+}
+
+}  // namespace pm

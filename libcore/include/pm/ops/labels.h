@@ -1,0 +1,41 @@
+#pragma once
+// Everyday label-map chores: masks of chosen labels, relabelling (merging),
+// and label statistics.
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "pm/base/volume.h"
+
+namespace pm {
+
+/// One merge rule: every label in `from` becomes `to`.
+struct MergeRule {
+  std::vector<std::int64_t> from;
+  std::int64_t to = 0;
+};
+
+/// Parse "1,2:1 3,4:2" (space- or semicolon-separated rules "a,b,...:target").
+/// \throw UsageError naming the bad rule and the expected form.
+std::vector<MergeRule> parse_merge_spec(const std::string& spec);
+/// Parse "2,41" or "2-5,7". \throw UsageError.
+std::vector<std::int64_t> parse_label_list(const std::string& spec);
+
+/// \throw InputError if any voxel is not an integer value (float volumes with
+/// integral values are accepted). `what` names the input in the message.
+void require_labels(const Volume& v, const std::string& what);
+
+/// uint8 mask: 1 where the voxel's label is in `labels`, 0 elsewhere.
+/// \throw InputError when none of the labels occurs (lists the labels present).
+Volume label_mask(const Volume& labels, const std::vector<std::int64_t>& which, const std::string& what = "labels");
+
+/// Relabel by rules; labels not named keep their value. Output keeps the
+/// input voxel type unless a target does not fit it (then int32).
+Volume merge_labels(const Volume& labels, const std::vector<MergeRule>& rules);
+
+/// Voxel count per label value. \throw InputError for more than `max_labels`
+/// distinct values (a grey-level volume, not a label map).
+std::map<std::int64_t, std::size_t> label_counts(const Volume& labels, std::size_t max_labels = 65536);
+
+}  // namespace pm

