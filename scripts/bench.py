@@ -1,0 +1,121 @@
+#!/usr/bin/env python3
+"""particlemesh benchmark suite: runs each case, prints a table, writes JSON.
+
+Every row reports a measured value against the target the issues set.
+Real data is read from ../shared/data (cases that need it are skipped when absent)."""
+import datetime
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+BIN = os.path.join(ROOT, "build", "bin")
+SHARED = os.path.normpath(os.path.join(ROOT, "..", "shared", "data"))
+rows = []
+
+
+def row(case, metric, value, unit, target=None, ok=None, note=""):
+    rows.append(dict(case=case, metric=metric, value=value, unit=unit, target=target, ok=ok, note=note))
+
+
+def run(cmd, **kw):
+    t = time.perf_counter()
+    p = subprocess.run(cmd, capture_output=True, text=True, **kw)
+    dt = time.perf_counter() - t
+    if p.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed ({p.returncode}): {p.stderr.strip()[-500:]}")
+    return p, dt
+
+
+def case_field():
+    exe = os.path.join(BIN, "pm_bench_field")
+    if not os.path.exists(exe):
+        row("field", "pm_bench_field", None, "", note="not built (Google Benchmark missing)")
+        return
+    p, _ = run([exe, "--benchmark_format=json", "--benchmark_min_time=0.5"])
+    data = json.loads(p.stdout)
+    for b in data["benchmarks"]:
+        ips = b.get("items_per_second")
+        if ips is None:
+            continue
+        name = b["name"]
+        target = None
+        ok = None
+        if "ValueGradient" in name and "Hessian" not in name and "Mix" not in name:
+            target = ">= 10 M/s per core"
+            ok = ips >= 10e6
+        row("field", name, round(ips / 1e6, 2), "M eval/s", target, ok)
+
+
+def particles_stats(args, threads=None):
+    cmd = [os.path.join(BIN, "particles")] + args + ["--stats", "-", "-q"]
+    if threads:
+        cmd += ["--threads", str(threads)]
+    p, dt = run(cmd)
+    return json.loads(p.stdout), dt
+
+
+def case_particles():
+    if not os.path.exists(os.path.join(BIN, "particles")):
+        row("particles", "particles", None, "", note="tool not built")
+        return
+    with tempfile.TemporaryDirectory() as tmp:
+        out = os.path.join(tmp, "p.ply")
+        # 492-particle sphere (Table 3.4): s from the hexagonal estimate 4π/((√3/2)s²) = 492.
+        s = (4 * 3.141592653589793 / (0.8660254 * 492)) ** 0.5
+        st, dt = particles_stats(["--implicit", "sphere", "--spacing", f"{s:.4f}", "-o", out])
+        row("particles", "sphere ~492 particles: time to convergence", round(dt, 3), "s", "< 0.1 s", dt < 0.1,
+            f"{st.get('particles')} particles, {st.get('iterations')} iterations")
+        brain = os.path.join(SHARED, "iso2mesh-head", "derived", "brain.nrrd")
+        if os.path.exists(brain):
+            args = ["-i", brain, "--iso", "0.5", "--spacing", "1.6", "-o", out]
+            st1, dt1 = particles_stats(args, threads=1)
+            st2, dt2 = particles_stats(args, threads=2)
+            n = st2.get("particles", 0)
+            row("particles", "brain mask surface (1 thread)", round(dt1, 2), "s", note=f"{n} particles")
+            row("particles", "brain mask surface (2 threads)", round(dt2, 2), "s", "30k particles < 10 s",
+                n >= 25000 and dt2 < 10, f"{n} particles, {st2.get('iterations')} iterations")
+            row("particles", "parallel speed-up, 2 threads", round(dt1 / dt2, 2), "x", ">= 1.6", dt1 / dt2 >= 1.6)
+            upd = st2.get("particle_updates")
+            if upd:
+                row("particles", "particle updates per second (2 threads)", round(upd / dt2 / 1e6, 2), "M/s")
+            st3, dt3 = particles_stats(["-i", brain, "--iso", "0.5", "--spacing", "0.9", "-o", out], threads=2)
+            row("particles", "~100k particles on a volume surface", round(dt3, 2), "s", "< 60 s",
+                dt3 < 60, f"{st3.get('particles')} particles")
+        else:
+            row("particles", "brain mask surface", None, "", note="../shared/data absent: skipped")
+
+
+CASES = {"field": case_field, "particles": case_particles}
+
+
+def main():
+    wanted = sys.argv[1:] or list(CASES)
+    for c in wanted:
+        if c not in CASES:
+            sys.exit(f"bench: unknown case {c!r}; expected one of {', '.join(CASES)}")
+        try:
+            CASES[c]()
+        except Exception as e:  # report and go on with the other cases
+            row(c, "error", None, "", note=str(e)[:300], ok=False)
+    w = [max(len(str(r[k] if r[k] is not None else "-")) for r in rows + [dict(case="case", metric="metric",
+         value="value", unit="unit", target="target")]) for k in ("case", "metric", "value", "unit", "target")]
+    hdr = ("case", "metric", "value", "unit", "target")
+    print("  ".join(h.ljust(x) for h, x in zip(hdr, w)) + "  ok    note")
+    for r in rows:
+        cells = [str(r[k]) if r[k] is not None else "-" for k in hdr]
+        ok = "" if r["ok"] is None else ("yes" if r["ok"] else "NO")
+        print("  ".join(c.ljust(x) for c, x in zip(cells, w)) + f"  {ok:<5} {r['note']}")
+    os.makedirs(os.path.join(ROOT, "bench-results"), exist_ok=True)
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    path = os.path.join(ROOT, "bench-results", f"{stamp}.json")
+    with open(path, "w") as f:
+        json.dump(dict(date=stamp, cpus=os.cpu_count(), rows=rows), f, indent=2)
+    print(f"\nbench: results in {os.path.relpath(path, ROOT)}")
+
+
+if __name__ == "__main__":
+    main()
