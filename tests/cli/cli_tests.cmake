@@ -35,3 +35,9 @@ pm_cli_test(volconv.help_example "Example:.*volconv" ${VC} --help)
 pm_cli_script(volconv.workflow volconv_test.sh)
 # == particles
 # == render
+# == morph
+# == gradlimit
+# == mcinit
+# == tighten
+# == medialaxis
+# == sizingfield
