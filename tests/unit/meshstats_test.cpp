@@ -1,0 +1,88 @@
+#include "pm/ops/meshstats.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "pm/base/error.h"
+#include "pm/field/implicits.h"
+
+namespace pm {
+namespace {
+
+Mesh icosahedron() {
+  const double t = (1 + std::sqrt(5.0)) / 2;
+  Mesh m;
+  m.vertices = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
+                {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+  for (Vec3& v : m.vertices) v = normalized(v);
+  m.faces = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+             {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
+             {3, 8, 9},  {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
+  return m;
+}
+
+TEST(MeshStats, RegularIcosahedron) {
+  const auto sphere = make_implicit("sphere");
+  MeshQualityParams p;
+  p.field = sphere.get();
+  const MeshQuality q = mesh_quality(icosahedron(), p);
+  EXPECT_NEAR(q.rr_min, 1.0, 1e-12);
+  EXPECT_NEAR(q.rr_mean, 1.0, 1e-12);
+  EXPECT_NEAR(q.min_angle_deg, 60.0, 1e-9);
+  EXPECT_EQ(q.valence_histogram[5], 12u);
+  EXPECT_DOUBLE_EQ(q.valence6_share, 0.0);
+  EXPECT_DOUBLE_EQ(q.valence_outside_5_7_share, 0.0);
+  EXPECT_EQ(q.topology.genus, 0);
+  EXPECT_EQ(q.topology.components, 1u);
+  EXPECT_EQ(q.self_intersecting_pairs, 0);
+  EXPECT_LT(q.dist_vertex_max, 1e-12);
+  // Face centroid of the unit icosahedron lies at the inradius 0.7947 from the centre.
+  const double inradius = std::sqrt(3.0) / 12 * (3 + std::sqrt(5.0)) * (4 / std::sqrt(10 + 2 * std::sqrt(5.0)));
+  EXPECT_NEAR(q.dist_centroid_max, 1 - inradius, 1e-6);
+  EXPECT_TRUE(check_requirements(q, "rr_min>=0.99,watertight,manifold,genus=0,no_self_intersections").empty());
+  const auto failed = check_requirements(q, "valence6>=0.65, rr_mean>=0.5");
+  ASSERT_EQ(failed.size(), 1u);
+  EXPECT_NE(failed[0].find("valence6"), std::string::npos);
+  EXPECT_THROW(check_requirements(q, "bogus>=1"), UsageError);
+  EXPECT_THROW(check_requirements(q, "nonsense"), UsageError);
+}
+
+TEST(MeshStats, DegenerateAndOpenAndIntersecting) {
+  Mesh m = icosahedron();
+  m.faces.pop_back();
+  MeshQuality q = mesh_quality(m);
+  EXPECT_EQ(q.topology.boundary_edges, 3u);
+  EXPECT_EQ(q.topology.genus, -1);
+  EXPECT_EQ(check_requirements(q, "watertight").size(), 1u);
+
+  Mesh flat;
+  flat.vertices = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}};
+  flat.faces = {{0, 1, 2}};
+  EXPECT_NEAR(mesh_quality(flat).rr_min, 0.0, 1e-12);
+
+  // Two interpenetrating icosahedra.
+  Mesh two = icosahedron();
+  const Mesh b = icosahedron();
+  for (const Vec3& v : b.vertices) two.vertices.push_back(v + Vec3(0.5, 0.1, 0.05));
+  for (const auto& f : b.faces) two.faces.push_back({f[0] + 12, f[1] + 12, f[2] + 12});
+  q = mesh_quality(two);
+  EXPECT_EQ(q.topology.components, 2u);
+  EXPECT_GT(q.self_intersecting_pairs, 0);
+}
+
+TEST(MeshStats, EdgeOverSizing) {
+  // Icosahedron edge of the unit-circumradius icosahedron is 1.0515; with h = 0.6 every edge is < 2h.
+  MeshQualityParams p;
+  const SizingField h = SizingField::constant(0.6, Box{{-2, -2, -2}, {2, 2, 2}});
+  p.sizing = &h;
+  const MeshQuality q = mesh_quality(icosahedron(), p);
+  EXPECT_NEAR(q.edge_h_max, 1.0514622 / 0.6, 1e-6);
+  EXPECT_DOUBLE_EQ(q.edge_le_2h_share, 1.0);
+  const SizingField h2 = SizingField::constant(0.5, Box{{-2, -2, -2}, {2, 2, 2}});
+  p.sizing = &h2;
+  EXPECT_DOUBLE_EQ(mesh_quality(icosahedron(), p).edge_le_2h_share, 0.0);
+}
+
+}  // namespace
+}  // namespace pm
