@@ -1,1 +1,227 @@
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <set>
+#include <tuple>
+
+#include "pm/base/error.h"
+#include "pm/ops/render.h"
+
+namespace pm {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// n points on the unit sphere (Fibonacci spiral) with outward normals.
+Mesh fibonacci_sphere(int n) {
+  Mesh m;
+  const double golden = kPi * (3 - std::sqrt(5.0));
+  for (int i = 0; i < n; ++i) {
+    const double z = 1 - 2 * (i + 0.5) / n, r = std::sqrt(1 - z * z), a = golden * i;
+    m.vertices.push_back({r * std::cos(a), r * std::sin(a), z});
+  }
+  m.normals = m.vertices;
+  return m;
+}
+
+bool is_background(const Image& img, int x, int y) {
+  const std::uint8_t* p = img.at(x, y);
+  return p[0] == 255 && p[1] == 255 && p[2] == 255;
+}
+
+std::size_t covered(const Image& img) {
+  std::size_t n = 0;
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x) n += !is_background(img, x, y);
+  return n;
+}
+
+class SphereCoverage : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(SphereCoverage, DiskOfExpectedRadiusWithoutHoles) {
+  const Mesh m = fibonacci_sphere(20000);
+  RenderParams p;
+  p.width = p.height = 400;
+  p.mode = GetParam();
+  const Image img = render(m, p);
+  ASSERT_EQ(img.width, 400);
+  ASSERT_EQ(img.height, 400);
+  const Camera cam = render_camera(m, p);
+  const Vec3 c = cam.project({0, 0, 0});
+  const double r_px = cam.scale;  // unit sphere
+  ASSERT_GT(r_px, 100);
+  const double expected = kPi * r_px * r_px;
+  EXPECT_NEAR(double(covered(img)), expected, 0.05 * expected);
+  std::size_t holes = 0;
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x)
+      if (std::hypot(x + 0.5 - c.x, y + 0.5 - c.y) < 0.9 * r_px) holes += is_background(img, x, y);
+  EXPECT_EQ(holes, 0u);
+}
+
+INSTANTIATE_TEST_SUITE_P(Modes, SphereCoverage, ::testing::Values("splats", "disks"));
+
+TEST(Render, SplatsAreSmoothlyShaded) {
+  // Neighbouring pixels inside the sphere differ little: normals are blended.
+  const Mesh m = fibonacci_sphere(20000);
+  RenderParams p;
+  p.width = p.height = 300;
+  const Image img = render(m, p);  // auto = splats for a point set
+  const Camera cam = render_camera(m, p);
+  const Vec3 c = cam.project({0, 0, 0});
+  int worst = 0;
+  for (int y = 1; y < img.height; ++y)
+    for (int x = 1; x < img.width; ++x) {
+      if (std::hypot(x + 0.5 - c.x, y + 0.5 - c.y) > 0.8 * cam.scale) continue;
+      worst = std::max({worst, std::abs(img.at(x, y)[1] - img.at(x - 1, y)[1]),
+                        std::abs(img.at(x, y)[1] - img.at(x, y - 1)[1])});
+    }
+  EXPECT_LE(worst, 6);
+}
+
+TEST(Render, SingleTriangleCoversItsArea) {
+  Mesh m;
+  m.vertices = {{0, 0, 0}, {1, 0.2, 0}, {0.3, 1, 0.5}};
+  m.faces = {{0, 1, 2}};
+  RenderParams p;
+  p.width = 500;
+  p.height = 400;
+  const Image img = render(m, p);
+  const Camera cam = fit_camera(m.vertices, p);
+  const Vec3 a = cam.project(m.vertices[0]), b = cam.project(m.vertices[1]), c = cam.project(m.vertices[2]);
+  const double area = 0.5 * std::fabs((b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x));
+  const double perimeter = std::hypot(b.x - a.x, b.y - a.y) + std::hypot(c.x - b.x, c.y - b.y) +
+                           std::hypot(a.x - c.x, a.y - c.y);
+  ASSERT_GT(area, 5000);
+  EXPECT_NEAR(double(covered(img)), area, 0.5 * perimeter);
+  // The projected centroid is covered, a point well outside is not.
+  EXPECT_FALSE(is_background(img, int((a.x + b.x + c.x) / 3), int((a.y + b.y + c.y) / 3)));
+  EXPECT_TRUE(is_background(img, 2, 2));
+}
+
+TEST(Render, CameraFollowsAzimuthElevationAndUpAxis) {
+  const std::vector<Vec3> box = {{-1, -1, -1}, {1, 1, 1}};
+  RenderParams p;
+  p.azimuth_deg = 0;
+  p.elevation_deg = 0;
+  Camera cam = fit_camera(box, p);  // up z, looking from +x
+  EXPECT_LT(cam.project({0, 0, 1}).y, 400);   // +z is up on screen
+  EXPECT_GT(cam.project({0, 1, 0}).x, 400);   // +y is to the right
+  EXPECT_LT(cam.project({1, 0, 0}).z, cam.project({-1, 0, 0}).z);  // +x is nearer
+  p.azimuth_deg = 90;
+  cam = fit_camera(box, p);
+  EXPECT_LT(cam.project({0, 1, 0}).z, cam.project({0, -1, 0}).z);  // now +y is nearer
+  p.up = "y";
+  p.azimuth_deg = 0;
+  p.elevation_deg = 90;
+  cam = fit_camera(box, p);
+  EXPECT_LT(cam.project({0, 1, 0}).z, cam.project({0, -1, 0}).z);  // looking down -y
+  EXPECT_NEAR(cam.scale, 800 / (2 * 1.05 * std::sqrt(3.0)), 1e-9);
+}
+
+TEST(Render, ColorByPicksDistinctColours) {
+  // Two triangles side by side with face labels 0 and 1, and a vertex scalar.
+  Mesh m;
+  m.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {2, 0, 0}, {3, 0, 0}, {2, 1, 0}};
+  m.faces = {{0, 1, 2}, {3, 4, 5}};
+  m.face_ints["label_a"] = {0, 1};
+  m.vertex_scalars["s"] = {0, 0, 0, 1, 1, 1};
+  RenderParams p;
+  p.width = p.height = 200;
+  p.elevation_deg = 90;  // look down z
+  const Camera cam = fit_camera(m.vertices, p);
+  auto colour_at = [&](const Image& img, const Vec3& w) {
+    const Vec3 s = cam.project(w);
+    const std::uint8_t* px = img.at(int(s.x), int(s.y));
+    return std::make_tuple(px[0], px[1], px[2]);
+  };
+  const Vec3 left{0.3, 0.3, 0}, right{2.3, 0.3, 0};
+  std::set<std::tuple<int, int, int>> seen;
+  const Image plain = render(m, p);
+  EXPECT_EQ(colour_at(plain, left), colour_at(plain, right));
+  seen.insert(colour_at(plain, left));
+  for (const char* prop : {"label_a", "s"}) {
+    p.color_by = prop;
+    const Image img = render(m, p);
+    EXPECT_NE(colour_at(img, left), colour_at(img, right)) << prop;
+    seen.insert(colour_at(img, left));
+    seen.insert(colour_at(img, right));
+  }
+  EXPECT_EQ(seen.size(), 5u);  // plain, two labels, two scalar ends: all different
+
+  p.color_by = "nope";
+  try {
+    render(m, p);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("\"nope\""), std::string::npos) << msg;
+    EXPECT_NE(msg.find("s (vertex), label_a (face)"), std::string::npos) << msg;
+  }
+  p.color_by = "label_a";
+  p.mode = "splats";
+  EXPECT_THROW(render(m, p), InputError);  // face labels cannot colour points
+}
+
+TEST(Render, EdgesDarkenTriangleBorders) {
+  Mesh m;
+  m.vertices = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+  m.faces = {{0, 1, 2}, {0, 2, 3}};
+  RenderParams p;
+  p.width = p.height = 200;
+  p.elevation_deg = 90;
+  const Image plain = render(m, p);
+  p.edges = true;
+  const Image lined = render(m, p);
+  std::size_t d = 0;  // pixels made clearly darker
+  for (std::size_t i = 0; i < plain.rgb.size(); i += 3) d += lined.rgb[i + 1] + 40 < plain.rgb[i + 1];
+  const Camera cam = fit_camera(m.vertices, p);
+  // The square's four sides plus its diagonal, about a pixel wide.
+  const double length_px = (4 + std::sqrt(2.0)) * cam.scale;
+  EXPECT_GT(double(d), 0.5 * length_px);
+  EXPECT_LT(double(d), 2.5 * length_px);
+}
+
+TEST(Render, DeterministicAndMeanSpacingIsRight) {
+  const Mesh m = fibonacci_sphere(3000);
+  RenderParams p;
+  p.width = p.height = 120;
+  EXPECT_EQ(render(m, p).rgb, render(m, p).rgb);
+
+  std::vector<Vec3> grid;
+  for (int i = 0; i < 30; ++i)
+    for (int j = 0; j < 20; ++j) grid.push_back({0.1 * i, 0.1 * j, 0.0});
+  EXPECT_NEAR(mean_nearest_neighbor_distance(grid), 0.1, 1e-9);
+  // Interior grid point 5 * 20 + 5: four neighbours at 0.1, then four at 0.1 * sqrt(2).
+  const std::vector<double> d4 = nearest_neighbor_distances(grid, 4), d5 = nearest_neighbor_distances(grid, 5);
+  EXPECT_NEAR(d4[105], 0.1, 1e-9);
+  EXPECT_NEAR(d5[105], 0.1 * std::sqrt(2.0), 1e-9);
+  EXPECT_NEAR(d5[0], 0.2, 1e-9);  // corner: 0.1, 0.1, 0.1414, 0.2, 0.2
+  std::vector<Vec3> cube;  // volume-filling: the grid has to grow
+  for (int i = 0; i < 12; ++i)
+    for (int j = 0; j < 12; ++j)
+      for (int k = 0; k < 12; ++k) cube.push_back({0.5 * i, 0.5 * j, 0.5 * k});
+  EXPECT_NEAR(mean_nearest_neighbor_distance(cube), 0.5, 1e-9);
+  EXPECT_EQ(mean_nearest_neighbor_distance({{1, 2, 3}}), 0.0);
+}
+
+TEST(Render, BadInput) {
+  Mesh empty;
+  EXPECT_THROW(render(empty, {}), InputError);
+  Mesh pts = fibonacci_sphere(10);
+  RenderParams p;
+  p.width = 0;
+  EXPECT_THROW(render(pts, p), UsageError);
+  p = {};
+  p.height = 9000;
+  EXPECT_THROW(render(pts, p), UsageError);
+  p = {};
+  p.mode = "voxels";
+  EXPECT_THROW(render(pts, p), UsageError);
+  p = {};
+  p.mode = "mesh";
+  EXPECT_THROW(render(pts, p), InputError);  // no faces
+}
+
+}  // namespace
+}  // namespace pm

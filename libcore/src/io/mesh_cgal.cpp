@@ -1,1 +1,166 @@
-// stub: to be implemented
+// OFF, OBJ and STL through CGAL's polygon-soup IO. The only translation unit
+// that includes CGAL's IO headers (they compile slowly).
+#include <CGAL/IO/OBJ.h>
+#include <CGAL/IO/OFF.h>
+#include <CGAL/IO/STL.h>
+#include <CGAL/Simple_cartesian.h>
+
+#include <cctype>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <sstream>
+
+#include "pm/base/error.h"
+#include "pm/io/mesh_formats.h"
+
+namespace pm {
+namespace {
+
+using Kernel = CGAL::Simple_cartesian<double>;
+using Point = Kernel::Point_3;
+using Polygons = std::vector<std::vector<std::size_t>>;
+
+std::vector<Vec3> to_vec3(const std::vector<Point>& pts) {
+  std::vector<Vec3> v;
+  v.reserve(pts.size());
+  for (const Point& p : pts) v.emplace_back(p.x(), p.y(), p.z());
+  return v;
+}
+
+void to_soup(const Mesh& m, std::vector<Point>& pts, Polygons& polys) {
+  pts.reserve(m.vertices.size());
+  for (const Vec3& v : m.vertices) pts.emplace_back(v.x, v.y, v.z);
+  polys.reserve(m.faces.size());
+  for (const auto& f : m.faces) polys.push_back({std::size_t(f[0]), std::size_t(f[1]), std::size_t(f[2])});
+}
+
+std::uintmax_t file_size(const std::string& path, const std::string& fn) {
+  std::error_code ec;
+  const std::uintmax_t n = std::filesystem::file_size(path, ec);
+  if (ec) throw IoError(fn + ": " + quote(path) + ": cannot determine the file size: " + ec.message());
+  return n;
+}
+
+// CGAL's OFF reader resizes its arrays to the header's counts before reading
+// any data: check them against the file size first. Handles the common header
+// forms ([ST][C][N][4][n]OFF [BINARY], comments); anything else is left to CGAL.
+void check_off_counts(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string text(4096, '\0');
+  in.read(&text[0], std::streamsize(text.size()));
+  text.resize(std::size_t(in.gcount()));
+  std::istringstream is(text);
+  std::vector<std::string> words;
+  std::string line;
+  while (words.size() < 6 && std::getline(is, line)) {
+    const auto hash = line.find('#');
+    if (hash != std::string::npos) line.erase(hash);
+    std::istringstream ls(line);
+    std::string w;
+    while (ls >> w) words.push_back(w);
+  }
+  if (words.empty()) return;
+  const std::string& key = words[0];
+  if (key.size() < 3 || key.compare(key.size() - 3, 3, "OFF") != 0) return;
+  std::size_t i = 1;
+  const bool binary = i < words.size() && words[i] == "BINARY";
+  if (binary) ++i;
+  if (key.find('n') != std::string::npos) ++i;  // nOFF: dimension first
+  if (i + 1 >= words.size()) return;
+  std::uint64_t nv = 0, nf = 0;
+  try {
+    const long long v = std::stoll(words[i]), f = std::stoll(words[i + 1]);
+    if (v < 0 || f < 0) return;  // CGAL reports these
+    nv = std::uint64_t(v);
+    nf = std::uint64_t(f);
+  } catch (const std::exception&) {
+    return;
+  }
+  // Smallest records: ASCII "0 0 0\n" and "0\n"; binary 3 floats and one int.
+  const std::uint64_t vb = binary ? 12 : 6, fb = binary ? 4 : 2;
+  const std::uint64_t size = file_size(path, "read_off");
+  if (nv > size / vb || nf > size / fb || nv * vb + nf * fb > size)
+    throw InputError("read_off: " + quote(path) + ": the header declares " + std::to_string(nv) + " vertices and " +
+                     std::to_string(nf) + " faces, more than a file of " + std::to_string(size) +
+                     " bytes can hold (truncated file or bad counts?)");
+}
+
+}  // namespace
+
+Mesh read_off(const std::string& path) {
+  check_off_counts(path);
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw IoError("read_off: " + quote(path) + ": cannot open");
+  std::vector<Point> pts;
+  Polygons polys;
+  if (!CGAL::IO::read_OFF(in, pts, polys, CGAL::parameters::verbose(false)))
+    throw InputError("read_off: " + quote(path) +
+                     ": malformed OFF (bad header, truncated data, bad number or vertex index out of range); "
+                     "expected \"OFF\", the counts \"V F E\", V vertices and F faces");
+  return mesh_from_polygons(to_vec3(pts), polys, "read_off", path);
+}
+
+void write_off(const Mesh& m, const std::string& path) {
+  std::vector<Point> pts;
+  Polygons polys;
+  to_soup(m, pts, polys);
+  std::ofstream os(path);
+  if (!os || !CGAL::IO::write_OFF(os, pts, polys, CGAL::parameters::stream_precision(17)))
+    throw IoError("write_off: " + quote(path) + ": write failed");
+  os.close();
+  if (!os) throw IoError("write_off: " + quote(path) + ": write failed (disk full?)");
+}
+
+Mesh read_obj(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw IoError("read_obj: " + quote(path) + ": cannot open");
+  std::vector<Point> pts;
+  Polygons polys;
+  if (!CGAL::IO::read_OBJ(in, pts, polys, CGAL::parameters::verbose(false)))
+    throw InputError("read_obj: " + quote(path) +
+                     ": malformed OBJ (unknown record, bad number, face index out of range, or no vertices or "
+                     "faces); expected \"v x y z\" and \"f i j k ...\" records");
+  return mesh_from_polygons(to_vec3(pts), polys, "read_obj", path);
+}
+
+void write_obj(const Mesh& m, const std::string& path) {
+  std::vector<Point> pts;
+  Polygons polys;
+  to_soup(m, pts, polys);
+  std::ofstream os(path);
+  if (!os || !CGAL::IO::write_OBJ(os, pts, polys, CGAL::parameters::stream_precision(17)))
+    throw IoError("write_obj: " + quote(path) + ": write failed");
+  os.close();
+  if (!os) throw IoError("write_obj: " + quote(path) + ": write failed (disk full?)");
+}
+
+Mesh read_stl(const std::string& path) {
+  {
+    std::ifstream probe(path);
+    if (!probe) throw IoError("read_stl: " + quote(path) + ": cannot open");
+  }
+  std::vector<Point> pts;
+  Polygons polys;
+  if (!CGAL::IO::read_STL(path, pts, polys, CGAL::parameters::verbose(false)))
+    throw InputError("read_stl: " + quote(path) +
+                     ": malformed STL (truncated binary data or bad ASCII facet); expected binary STL or "
+                     "\"solid ... facet normal ... outer loop vertex x y z ...\"");
+  if (polys.empty())
+    throw InputError("read_stl: " + quote(path) + ": no triangles; expected at least one facet");
+  return mesh_from_polygons(to_vec3(pts), polys, "read_stl", path);
+}
+
+void write_stl(const Mesh& m, const std::string& path, bool binary) {
+  if (m.faces.empty())
+    throw InputError("write_stl: " + quote(path) + ": the mesh has no faces; STL stores triangles only");
+  std::vector<Point> pts;
+  Polygons polys;
+  to_soup(m, pts, polys);
+  if (!CGAL::IO::write_STL(path, pts, polys,
+                           CGAL::parameters::use_binary_mode(binary).stream_precision(17)))
+    throw IoError("write_stl: " + quote(path) + ": write failed");
+}
+
+}  // namespace pm
