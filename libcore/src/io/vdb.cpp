@@ -1,1 +1,143 @@
-// stub: to be implemented
+#include "pm/io/vdb.h"
+
+#include <openvdb/io/File.h>
+#include <openvdb/math/Transform.h>
+#include <openvdb/openvdb.h>
+#include <openvdb/tools/Dense.h>
+
+#include <mutex>
+#include <sstream>
+
+#include "pm/base/atomic_file.h"
+#include "pm/base/error.h"
+#include "pm/io/volume_io.h"
+
+namespace pm {
+
+void ensure_openvdb_initialized() {
+  static std::once_flag once;
+  std::call_once(once, [] { openvdb::initialize(); });
+}
+
+namespace {
+
+const char* const kWho = "read_vdb";
+
+// Dense copy of a scalar grid over its active bounding box; inactive voxels
+// inside the box (e.g. a level set's far field) take their tree value.
+template <class GridT, class T>
+Volume dense_volume(const GridT& grid, VoxelType type, const std::string& path) {
+  const std::string where = std::string(kWho) + ": " + quote(path);
+  const openvdb::CoordBBox bbox = grid.evalActiveVoxelBoundingBox();
+  if (bbox.empty()) throw InputError(where + ": grid " + quote(grid.getName()) + " has no active voxels");
+  const openvdb::Coord dim = bbox.dim();
+  const Dims dims{std::size_t(dim.x()), std::size_t(dim.y()), std::size_t(dim.z())};
+
+  const openvdb::math::Transform& xf = grid.transform();
+  if (!xf.isLinear())
+    throw InputError(where + ": grid " + quote(grid.getName()) + " has a non-linear transform (" +
+                     xf.mapType() + "); expected a linear (affine) one");
+  // OpenVDB maps row vectors: world = [i j k 1] * M, so row a of M is the step along axis a.
+  const openvdb::Mat4d m = xf.baseMap()->getAffineMap()->getMat4();
+  Geometry g;
+  for (int a = 0; a < 3; ++a)
+    for (int r = 0; r < 3; ++r) g.directions[r][a] = m(a, r);
+  const openvdb::Vec3d o = xf.indexToWorld(bbox.min());
+  g.origin = {o.x(), o.y(), o.z()};
+  check_volume_header(kWho, path, dims, g);
+
+  Volume v(type, dims, g);
+  openvdb::tools::Dense<T, openvdb::tools::LayoutXYZ> dense(bbox, v.data<T>());
+  openvdb::tools::copyToDense(grid, dense);
+  return v;
+}
+
+}  // namespace
+
+Volume read_vdb(const std::string& path, const std::string& grid_name) {
+  const std::string where = std::string(kWho) + ": " + quote(path);
+  require_readable(path);
+  ensure_openvdb_initialized();
+  try {
+    openvdb::io::File file(path);
+    file.open(false);  // no delayed loading: the file may be renamed or replaced later
+    openvdb::GridPtrVecPtr meta = file.readAllGridMetadata();
+    std::string chosen;
+    bool have = false;
+    std::ostringstream found;
+    for (const auto& g : *meta) {
+      found << (found.tellp() > 0 ? ", " : "") << quote(g->getName()) << " (" << g->type() << ")";
+      const bool scalar = g->isType<openvdb::FloatGrid>() || g->isType<openvdb::DoubleGrid>();
+      if (!have && scalar && (grid_name.empty() || g->getName() == grid_name)) {
+        chosen = g->getName();
+        have = true;
+      }
+      if (!grid_name.empty() && g->getName() == grid_name && !scalar)
+        throw InputError(where + ": grid " + quote(grid_name) + " is a " + g->type() +
+                         "; expected a float or double grid");
+    }
+    if (!have && !grid_name.empty())
+      throw InputError(where + ": no grid named " + quote(grid_name) + "; the file has " +
+                       (meta->empty() ? std::string("no grids") : found.str()));
+    if (!have)
+      throw InputError(where + ": no float or double grid; the file has " +
+                       (meta->empty() ? std::string("no grids") : found.str()));
+    openvdb::GridBase::Ptr base = file.readGrid(chosen);
+    file.close();
+    if (auto fg = openvdb::gridPtrCast<openvdb::FloatGrid>(base))
+      return dense_volume<openvdb::FloatGrid, float>(*fg, VoxelType::f32, path);
+    if (auto dg = openvdb::gridPtrCast<openvdb::DoubleGrid>(base))
+      return dense_volume<openvdb::DoubleGrid, double>(*dg, VoxelType::f64, path);
+    throw InputError(where + ": grid " + quote(chosen) + " is not a float or double grid");
+  } catch (const openvdb::Exception& e) {
+    throw InputError(where + ": " + e.what());
+  }
+}
+
+void write_vdb(const Volume& v, const std::string& path, const std::string& grid_name) {
+  const std::string where = "write_vdb: " + quote(path);
+  if (v.empty()) throw InputError(where + ": the volume is empty");
+  ensure_openvdb_initialized();
+  const Dims& d = v.dims();
+  const std::size_t limit = std::size_t(1) << 30;  // VDB index coordinates are int32
+  if (d.nx > limit || d.ny > limit || d.nz > limit) throw InputError(where + ": volume too large for VDB coordinates");
+
+  // VDB stores float: every voxel type is converted (exact for |integers| < 2^24).
+  std::vector<float> values = v.to_float();
+  const openvdb::Coord lo(0, 0, 0), hi(int(d.nx) - 1, int(d.ny) - 1, int(d.nz) - 1);
+  const openvdb::CoordBBox bbox(lo, hi);
+  // Background: the value of voxel (0,0,0), typically the outside value
+  // (0 for masks, the far value of a clamped distance field); voxels equal to
+  // it become inactive and are pruned away.
+  const float background = values.front();
+  openvdb::FloatGrid::Ptr grid = openvdb::FloatGrid::create(background);
+  {
+    openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ> dense(bbox, values.data());
+    openvdb::tools::copyFromDense(dense, *grid, 0.0f);
+  }
+  grid->tree().prune();
+  // Keep the full box: the two extreme corners stay active so a reader that
+  // takes the active bounding box gets the same dims back.
+  grid->tree().setValueOn(lo, values.front());
+  grid->tree().setValueOn(hi, values.back());
+
+  const Geometry& g = v.geometry();
+  openvdb::Mat4d m = openvdb::Mat4d::identity();
+  for (int a = 0; a < 3; ++a)
+    for (int r = 0; r < 3; ++r) m(a, r) = g.directions[r][a];
+  m(3, 0) = g.origin.x;
+  m(3, 1) = g.origin.y;
+  m(3, 2) = g.origin.z;
+  try {
+    grid->setTransform(openvdb::math::Transform::createLinearTransform(m));
+    grid->setName(grid_name);
+    openvdb::io::File file(path);
+    openvdb::GridPtrVec grids{grid};
+    file.write(grids);
+    file.close();
+  } catch (const openvdb::Exception& e) {
+    throw IoError(where + ": " + e.what());
+  }
+}
+
+}  // namespace pm
