@@ -1,1 +1,332 @@
+#include "pm/field/volume_field.h"
+
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "pm/base/error.h"
+#include "pm/field/curvature.h"
+
+namespace pm {
+namespace {
+
+// An anisotropic, non-orthogonal (sheared and rotated) geometry.
+Geometry oblique_geometry() {
+  Geometry g;
+  g.origin = Vec3(-1.25, 0.5, 2.0);
+  g.directions = Mat3::from_columns(Vec3(0.7, 0.1, 0.0), Vec3(-0.2, 0.9, 0.15), Vec3(0.05, -0.1, 1.3));
+  return g;
+}
+
+template <class F>
+Volume sample(Dims d, const Geometry& g, F f) {
+  Volume v(VoxelType::f32, d, g);
+  for (std::size_t k = 0; k < d.nz; ++k)
+    for (std::size_t j = 0; j < d.ny; ++j)
+      for (std::size_t i = 0; i < d.nx; ++i) v.set(i, j, k, f(g.index_to_world(Vec3(i, j, k))));
+  return v;
+}
+
+Volume random_volume(Dims d, const Geometry& g, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-1, 1);
+  return sample(d, g, [&](const Vec3&) { return u(rng); });
+}
+
+// Random index-space positions with fractional parts in [0.05, 0.95] (so a
+// world step of 1e-5 stays inside one cell, where the field is a tricubic
+// polynomial), covering border cells too.
+std::vector<Vec3> cell_interior_points(const Volume& v, int count, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> frac(0.05, 0.95);
+  std::vector<Vec3> pts;
+  for (int n = 0; n < count; ++n) {
+    Vec3 t;
+    for (int a = 0; a < 3; ++a) {
+      std::uniform_int_distribution<int> cell(0, int(v.dims()[a]) - 2);
+      t[a] = cell(rng) + frac(rng);
+    }
+    pts.push_back(v.geometry().index_to_world(t));
+  }
+  return pts;
+}
+
+const VolumeFieldParams kBspline{KernelType::bspline, KernelType::bspline};
+const VolumeFieldParams kCatmullRom{KernelType::catmull_rom, KernelType::catmull_rom};
+
+TEST(VolumeField, DeltaVolumeGivesKernelProducts) {
+  // One non-zero voxel: F(x) = 2.5 f(tx - 5) f(ty - 4) f(tz - 6) with
+  // t = (x - origin) / spacing per axis. Checks the storage layout and that
+  // each axis gets its own weights and spacing.
+  const Geometry g = Geometry::with_spacing(0.5, 0.8, 1.25, Vec3(1, -2, 3));
+  Volume v(VoxelType::f32, Dims{11, 9, 13}, g);
+  v.set(5, 4, 6, 2.5);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> off(-2.2, 2.2);
+  for (const VolumeFieldParams& p : {kBspline, kCatmullRom, VolumeFieldParams::chapter5_mix()}) {
+    const VolumeField f(v, p);
+    const KernelType kv = p.value_kernel, kd = p.deriv_kernel;
+    for (int n = 0; n < 200; ++n) {
+      const double a = off(rng), b = off(rng), c = off(rng);
+      const Vec3 x = g.index_to_world(Vec3(5 + a, 4 + b, 6 + c));
+      Vec3 grad;
+      Mat3 hess;
+      const double val = f.evaluate(x, grad, hess);
+      EXPECT_NEAR(val, 2.5 * kernel_value(kv, a) * kernel_value(kv, b) * kernel_value(kv, c), 1e-12);
+      const double wa = kernel_value(kd, a), wb = kernel_value(kd, b), wc = kernel_value(kd, c);
+      const double da = kernel_d1(kd, a), db = kernel_d1(kd, b), dc = kernel_d1(kd, c);
+      EXPECT_NEAR(grad.x, 2.5 * da * wb * wc / 0.5, 1e-12);
+      EXPECT_NEAR(grad.y, 2.5 * wa * db * wc / 0.8, 1e-12);
+      EXPECT_NEAR(grad.z, 2.5 * wa * wb * dc / 1.25, 1e-12);
+      EXPECT_NEAR(hess[0][1], 2.5 * da * db * wc / (0.5 * 0.8), 1e-12);
+      EXPECT_NEAR(hess[1][2], 2.5 * wa * db * dc / (0.8 * 1.25), 1e-12);
+      EXPECT_NEAR(hess[0][2], 2.5 * da * wb * dc / (0.5 * 1.25), 1e-12);
+      // Second derivatives jump at knots for Catmull-Rom; compare away from them.
+      if (kd == KernelType::bspline) {
+        EXPECT_NEAR(hess[0][0], 2.5 * kernel_d2(kd, a) * wb * wc / 0.25, 1e-12);
+        EXPECT_NEAR(hess[2][2], 2.5 * wa * wb * kernel_d2(kd, c) / (1.25 * 1.25), 1e-12);
+      }
+    }
+  }
+}
+
+TEST(VolumeField, BorderReplicatesEdgeVoxels) {
+  // Near and beyond the border the field equals that of the volume padded
+  // with 3 copies of its edge voxels on every side.
+  const Geometry g = oblique_geometry();
+  const Dims d{6, 5, 7};
+  const Volume v = random_volume(d, g, 11);
+  const int pad = 3;
+  Geometry gp = g;
+  gp.origin = g.index_to_world(Vec3(-pad, -pad, -pad));
+  Volume vp(VoxelType::f32, Dims{d.nx + 2 * pad, d.ny + 2 * pad, d.nz + 2 * pad}, gp);
+  auto clampi = [](long i, std::size_t n) { return std::size_t(std::min<long>(std::max<long>(i, 0), long(n) - 1)); };
+  for (std::size_t k = 0; k < vp.dims().nz; ++k)
+    for (std::size_t j = 0; j < vp.dims().ny; ++j)
+      for (std::size_t i = 0; i < vp.dims().nx; ++i)
+        vp.set(i, j, k, v.get(clampi(long(i) - pad, d.nx), clampi(long(j) - pad, d.ny), clampi(long(k) - pad, d.nz)));
+  const VolumeField f(v, kBspline), fp(vp, kBspline);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> tx(-1.5, d.nx + 0.5), ty(-1.5, d.ny + 0.5), tz(-1.5, d.nz + 0.5);
+  for (int n = 0; n < 300; ++n) {
+    const Vec3 x = g.index_to_world(Vec3(tx(rng), ty(rng), tz(rng)));
+    Vec3 g1, g2;
+    Mat3 h1, h2;
+    EXPECT_NEAR(f.evaluate(x, g1, h1), fp.evaluate(x, g2, h2), 1e-12);
+    EXPECT_NEAR(norm(g1 - g2), 0.0, 1e-11);
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) EXPECT_NEAR(h1[r][c], h2[r][c], 1e-10);
+  }
+  // Far outside: the value of the nearest corner voxel, flat gradient.
+  Vec3 grad;
+  EXPECT_NEAR(f.value_gradient(g.index_to_world(Vec3(-50, -60, -70)), grad), v.get(0, 0, 0), 1e-6);
+  EXPECT_EQ(norm(grad), 0.0);
+  EXPECT_NEAR(f.value(g.index_to_world(Vec3(1e12, 40, 1e9))), v.get(d.nx - 1, d.ny - 1, d.nz - 1), 1e-6);
+}
+
+TEST(VolumeField, DerivativesMatchCentralDifferences) {
+  // Inside a cell F is a tricubic polynomial of t = D^-1 (x - origin), so the
+  // central-difference error is (δ²/6)·(a third derivative of F, resp. of
+  // ∇F): with |v| <= 1, spacing >= 0.7 and δ = 1e-5 that is < 1e-8, and
+  // rounding adds ~1e-16·|F|/δ ~ 1e-11. A wrong chain rule (D^-1 for D^-T,
+  // a missing spacing) is off by O(1).
+  const Geometry g = oblique_geometry();
+  const Volume v = random_volume(Dims{9, 8, 7}, g, 5);
+  const double delta = 1e-5, tol = 1e-6;
+  for (const VolumeFieldParams& p : {kBspline, kCatmullRom}) {
+    const VolumeField f(v, p);
+    for (const Vec3& x : cell_interior_points(v, 200, 17)) {
+      Vec3 grad, grad_only;
+      Mat3 hess;
+      const double val = f.evaluate(x, grad, hess);
+      EXPECT_NEAR(val, f.value(x), 1e-14);
+      EXPECT_NEAR(val, f.value_gradient(x, grad_only), 1e-14);
+      EXPECT_NEAR(norm(grad - grad_only), 0.0, 1e-13);
+      for (int a = 0; a < 3; ++a) {
+        Vec3 e;
+        e[a] = delta;
+        EXPECT_NEAR(grad[a], (f.value(x + e) - f.value(x - e)) / (2 * delta), tol) << kernel_name(p.value_kernel);
+        Vec3 gp, gm;
+        f.value_gradient(x + e, gp);
+        f.value_gradient(x - e, gm);
+        for (int b = 0; b < 3; ++b)
+          EXPECT_NEAR(hess[b][a], (gp[b] - gm[b]) / (2 * delta), tol) << kernel_name(p.value_kernel);
+      }
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) EXPECT_EQ(hess[a][b], hess[b][a]);
+    }
+  }
+}
+
+TEST(VolumeField, Chapter5MixTakesValueAndDerivativesFromTheirKernels) {
+  const Geometry g = oblique_geometry();
+  const Volume v = random_volume(Dims{8, 8, 8}, g, 23);
+  const VolumeField mix(v, VolumeFieldParams::chapter5_mix()), bs(v, kBspline), cr(v, kCatmullRom);
+  for (const Vec3& x : cell_interior_points(v, 100, 29)) {
+    Vec3 gm, gb;
+    Mat3 hm, hb;
+    EXPECT_NEAR(mix.evaluate(x, gm, hm), cr.value(x), 1e-14);
+    bs.evaluate(x, gb, hb);
+    EXPECT_NEAR(norm(gm - gb), 0.0, 1e-13);
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) EXPECT_NEAR(hm[r][c], hb[r][c], 1e-12);
+  }
+  EXPECT_EQ(mix.describe(), "volume 8x8x8 catmull-rom/bspline");
+  EXPECT_EQ(VolumeField(v, kBspline, "head.nrrd").describe(), "volume head.nrrd bspline");
+}
+
+TEST(VolumeField, LinearFunctionGradientInWorldUnits) {
+  // Both kernels reproduce linear functions exactly, so away from the border
+  // (taps inside) the gradient is a, in world units, up to the float
+  // rounding of the samples: |F| <= 6 gives ~4e-7 per sample, ~2e-6 after
+  // dividing by a spacing >= 0.7 and summing |weights| <= 2.
+  const Geometry g = oblique_geometry();
+  const Dims d{12, 10, 9};
+  const Vec3 a(0.8, -1.3, 0.45);
+  const double b = 0.25;
+  const Vec3 mid = g.index_to_world(Vec3(5.5, 4.5, 4));
+  const Volume v = sample(d, g, [&](const Vec3& x) { return dot(a, x - mid) + b; });
+  std::mt19937 rng(2);
+  for (const VolumeFieldParams& p : {kBspline, kCatmullRom, VolumeFieldParams::chapter5_mix()}) {
+    const VolumeField f(v, p);
+    for (int n = 0; n < 200; ++n) {
+      std::uniform_real_distribution<double> tx(1, d.nx - 2.001), ty(1, d.ny - 2.001), tz(1, d.nz - 2.001);
+      const Vec3 x = g.index_to_world(Vec3(tx(rng), ty(rng), tz(rng)));
+      Vec3 grad;
+      Mat3 hess;
+      const double val = f.evaluate(x, grad, hess);
+      EXPECT_NEAR(val, dot(a, x - mid) + b, 1e-5);
+      EXPECT_NEAR(grad.x, a.x, 1e-5);
+      EXPECT_NEAR(grad.y, a.y, 1e-5);
+      EXPECT_NEAR(grad.z, a.z, 1e-5);
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(hess[r][c], 0.0, 1e-5);
+    }
+  }
+}
+
+// Project x onto F = 0 along the gradient (Newton).
+Vec3 project(const ScalarField& f, Vec3 x) {
+  for (int it = 0; it < 6; ++it) {
+    Vec3 g;
+    const double v = f.value_gradient(x, g);
+    x -= g * (v / norm2(g));
+  }
+  return x;
+}
+
+struct CurvatureError {
+  double max_abs = 0;  // largest |mean curvature - 1/R|
+  double mean = 0;     // average of (mean curvature - 1/R)
+};
+
+// Mean-curvature error over surface points of a sampled signed-distance
+// sphere of radius R with voxel size h (B-spline).
+CurvatureError sphere_mean_curvature_error(double R, double h) {
+  const int n = int(std::ceil(1.4 * R / h));
+  const Geometry g = Geometry::with_spacing(h, h, h, Vec3(-n * h, -n * h, -n * h));
+  const Volume v = sample(Dims{std::size_t(2 * n + 1), std::size_t(2 * n + 1), std::size_t(2 * n + 1)}, g,
+                          [&](const Vec3& x) { return norm(x) - R; });
+  const VolumeField f(v);
+  CurvatureError err;
+  const int count = 300;
+  for (int i = 0; i < count; ++i) {  // Fibonacci sphere directions
+    const double z = 1 - 2 * (i + 0.5) / count, r = std::sqrt(1 - z * z), phi = 2.399963229728653 * i;
+    const Vec3 x = project(f, Vec3(R * r * std::cos(phi), R * r * std::sin(phi), R * z));
+    Vec3 grad;
+    Mat3 hess;
+    EXPECT_LT(std::fabs(f.evaluate(x, grad, hess)), 1e-9);
+    const double e = curvature(grad, hess).mean() - 1 / R;
+    err.max_abs = std::max(err.max_abs, std::fabs(e));
+    err.mean += e / count;
+  }
+  return err;
+}
+
+TEST(VolumeField, SampledSphereMeanCurvature) {
+  // The B-spline smooths: F ≈ d + (h²/6)Δd = |x| - R + h²/(3|x|), whose zero
+  // set is a sphere of radius ≈ R - h²/(3R), so on average the mean
+  // curvature is high by b = h²/(3R³) (checked to 10%). The variation over
+  // directions (grid anisotropy) is O(h²) too: allow |error| <= 2b, and the
+  // error must shrink about 4x when h halves.
+  const double R = 1.0;
+  for (double h : {R / 10, R / 20}) {
+    const double b = h * h / (3 * R * R * R);
+    const CurvatureError e = sphere_mean_curvature_error(R, h);
+    EXPECT_NEAR(e.mean, b, 0.1 * b) << "h=" << h;
+    EXPECT_LT(e.max_abs, 2 * b) << "h=" << h;
+  }
+  EXPECT_LT(sphere_mean_curvature_error(R, R / 20).max_abs, 0.3 * sphere_mean_curvature_error(R, R / 10).max_abs);
+}
+
+TEST(VolumeField, SampledTorusPrincipalCurvatures) {
+  // Signed distance of the torus R = 1, r = 0.4 with h = 0.04 (r/h = 10).
+  // Closed forms: outer equator κ = (1/r, 1/(R+r)), inner equator
+  // κ = (1/r, -1/(R-r)). The B-spline smoothing biases curvatures by
+  // O(h²/r²) relative to the largest one, 1/r (sphere: (h²/3r²)/r, 0.008
+  // here; observed 0.012): tolerance (h/r)²/r = 0.025.
+  const double Rt = 1.0, rt = 0.4, h = 0.04;
+  const int nx = int(std::ceil(1.6 / h)), nz = int(std::ceil(0.6 / h));
+  const Geometry g = Geometry::with_spacing(h, h, h, Vec3(-nx * h, -nx * h, -nz * h));
+  const Volume v = sample(Dims{std::size_t(2 * nx + 1), std::size_t(2 * nx + 1), std::size_t(2 * nz + 1)}, g,
+                          [&](const Vec3& x) { return std::hypot(std::hypot(x.x, x.y) - Rt, x.z) - rt; });
+  const VolumeField f(v);
+  const double tol = (h / rt) * (h / rt) / rt;
+  for (double phi : {0.0, 0.3, 0.7854, 2.0}) {
+    const Vec3 dir(std::cos(phi), std::sin(phi), 0);
+    for (bool outer : {true, false}) {
+      const Vec3 x = project(f, dir * (outer ? Rt + rt : Rt - rt));
+      Vec3 grad;
+      Mat3 hess;
+      f.evaluate(x, grad, hess);
+      const Curvature c = curvature(grad, hess);
+      EXPECT_NEAR(c.k1, 1 / rt, tol) << "phi=" << phi << (outer ? " outer" : " inner");
+      EXPECT_NEAR(c.k2, outer ? 1 / (Rt + rt) : -1 / (Rt - rt), tol) << "phi=" << phi << (outer ? " outer" : " inner");
+      EXPECT_NEAR(std::fabs(c.dir2.z), 0.0, 1e-3);  // the ring direction is horizontal
+    }
+  }
+}
+
+TEST(VolumeField, RejectsNonFiniteVoxels) {
+  Volume v(VoxelType::f32, Dims{4, 3, 2});
+  v.set(2, 1, 1, std::numeric_limits<double>::quiet_NaN());
+  v.set(3, 2, 1, std::numeric_limits<double>::infinity());
+  try {
+    VolumeField f(v, {}, "seg.nrrd");
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("\"seg.nrrd\""), std::string::npos) << m;
+    EXPECT_NE(m.find("(2,1,1)"), std::string::npos) << m;
+    EXPECT_NE(m.find("2 non-finite"), std::string::npos) << m;
+  }
+  Volume big(VoxelType::f64, Dims{2, 2, 2});
+  big.set(1, 0, 0, 1e300);  // finite as double, not as float
+  EXPECT_THROW(VolumeField(big, {}, "big"), InputError);
+}
+
+TEST(VolumeField, DomainResolutionAndNonFinitePositions) {
+  const Geometry g = oblique_geometry();
+  const Volume v = random_volume(Dims{5, 6, 7}, g, 1);
+  const VolumeField f(v);
+  const Box b = f.domain(), w = v.world_bounds();
+  EXPECT_EQ(b.lo, w.lo);
+  EXPECT_EQ(b.hi, w.hi);
+  EXPECT_NEAR(f.resolution(), std::hypot(0.7, 0.1, 0.0), 1e-15);  // the shortest column
+  Vec3 grad;
+  Mat3 hess;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_TRUE(std::isnan(f.evaluate(Vec3(nan, 0, 0), grad, hess)));
+  EXPECT_TRUE(std::isnan(grad.x) && std::isnan(hess[1][1]));
+  // Integer voxels are converted.
+  Volume u8(VoxelType::u8, Dims{4, 4, 4});
+  u8.set(1, 2, 3, 200);
+  EXPECT_NEAR(VolumeField(u8, kCatmullRom).value(Vec3(1, 2, 3)), 200.0, 1e-12);
+}
+
+}  // namespace
+}  // namespace pm

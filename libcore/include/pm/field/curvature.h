@@ -1,6 +1,12 @@
 #pragma once
 // Principal curvatures from gradient and Hessian of an implicit (SPEC §1).
 // Sign convention: for F < 0 inside, a sphere of radius R has κ1 = κ2 = 1/R.
+// Shape operator G = P H P / |∇F| with P = I - n nᵀ (SPEC §1 writes a minus
+// sign, which belongs to the opposite inside convention); κ1,2 = (T ±
+// sqrt(2N² - T²))/2 with T = trace(G), N = |G|_F, evaluated in a tangent
+// basis where 2N² - T² = (a-d)² + 4b² for G's 2x2 block [[a,b],[b,d]] (no
+// cancellation at umbilics). Saddles have κ2 < 0 (a torus's inner equator:
+// κ2 = -1/(R-r)).
 #include "pm/base/vec.h"
 
 namespace pm {
@@ -14,7 +20,10 @@ struct Curvature {
   double gaussian() const { return k1 * k2; }
 };
 
-/// Precondition: |grad| > 0 (returns zeros otherwise).
+/// Curvature of the level set through a point with gradient `grad` and
+/// Hessian `hess` (world units). When k1 = k2 the directions are an arbitrary
+/// orthonormal tangent pair. dir1, dir2, normal form a right-handed frame.
+/// Precondition: |grad| > 0 (returns all zeros otherwise).
 Curvature curvature(const Vec3& grad, const Mat3& hess);
 
 }  // namespace pm

@@ -3,6 +3,7 @@
 // with 4-tap kernels (SPEC §1), honouring the volume's geometry (origin,
 // spacing and direction matrix). Samples outside the grid are clamped to the
 // border (replicate).
+#include <cstddef>
 #include <memory>
 #include <vector>
 
@@ -19,14 +20,25 @@ struct VolumeFieldParams {
   static VolumeFieldParams chapter5_mix() { return {KernelType::catmull_rom, KernelType::bspline}; }
 };
 
+/// World position x maps to index space by t = D⁻¹ (x - origin); gradient and
+/// Hessian are converted back: ∇_world = D⁻ᵀ ∇_t, H_world = D⁻ᵀ H_t D⁻¹.
+/// With mixed kernels the gradient and Hessian are those of the
+/// deriv_kernel reconstruction (not the derivatives of value()). A NaN
+/// position gives NaN results. Thread-safe for concurrent evaluation; no
+/// allocation after construction.
 class VolumeField : public ScalarField {
  public:
-  /// Copies the voxels as float. \throw InputError on NaN/Inf voxels.
+  /// Copies the voxels as float (`name` is used in messages and describe()).
+  /// \throw InputError on an empty volume, a singular direction matrix, or
+  /// NaN/Inf voxels (or values beyond the float range), naming `name`, the
+  /// first bad voxel and how many there are.
   explicit VolumeField(const Volume& v, VolumeFieldParams p = {}, std::string name = {});
   double value(const Vec3& x) const override;
   double value_gradient(const Vec3& x, Vec3& grad) const override;
   double evaluate(const Vec3& x, Vec3& grad, Mat3& hess) const override;
+  /// World bounding box of the voxel nodes.
   Box domain() const override;
+  /// Smallest voxel spacing (world units).
   double resolution() const override;
   std::string describe() const override;
   const Dims& dims() const { return dims_; }
@@ -39,6 +51,13 @@ class VolumeField : public ScalarField {
   VolumeFieldParams params_;
   std::vector<float> data_;
   std::string name_;
+  // Voxel storage is bricked (see volume_field.cpp): voxel (i,j,k) lives at
+  // data_[base_ + offset_[0][i+3] + offset_[1][j+3] + offset_[2][k+3]]; the
+  // tables cover indices -3 .. n+3 with clamping to the border built in.
+  // base_ aligns bricks to cache lines; a copy stays correct (offsets are
+  // relative) but may lose that alignment.
+  std::size_t base_ = 0;
+  std::vector<std::ptrdiff_t> offset_[3];
 };
 
 }  // namespace pm
