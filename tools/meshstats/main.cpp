@@ -32,8 +32,8 @@ void print_table(const pm::MeshQuality& q) {
     std::fprintf(stderr, "  edge/h mean %.3f max %.3f  edges <= 2h: %.4f%%\n", q.edge_h_mean, q.edge_h_max,
                  100 * q.edge_le_2h_share);
   if (q.has_field)
-    std::fprintf(stderr, "  distance to surface: vertices max %.3g mean %.3g, centroids max %.3g mean %.3g\n",
-                 q.dist_vertex_max, q.dist_vertex_mean, q.dist_centroid_max, q.dist_centroid_mean);
+    std::fprintf(stderr, "  distance to surface: vertices max %.3g mean %.3g, centroids max %.3g mean %.3g (%zu not projected)\n",
+                 q.dist_vertex_max, q.dist_vertex_mean, q.dist_centroid_max, q.dist_centroid_mean, q.dist_failed);
 }
 }  // namespace
 

@@ -11,18 +11,25 @@
 namespace pm {
 namespace {
 
-// Distance from x to the surface F = iso by Newton projection along the gradient.
+// Distance from x to the surface F = iso by damped Newton projection along the
+// gradient (steps capped at the field's resolution so flat regions of e.g. a
+// binary mask cannot throw the point away). Returns NaN when it does not
+// reach |F - iso| small within the iteration budget.
 double surface_distance(const ScalarField& f, double iso, const Vec3& x0) {
   Vec3 x = x0, g;
-  for (int it = 0; it < 20; ++it) {
+  const double cap = f.resolution();
+  for (int it = 0; it < 60; ++it) {
     const double v = f.value_gradient(x, g) - iso;
     const double g2 = norm2(g);
-    if (!(g2 > 0)) break;
-    const Vec3 step = g * (v / g2);
+    if (!(g2 > 0)) return std::nan("");
+    Vec3 step = g * (v / g2);
+    const double len = norm(step);
+    if (len > cap) step *= cap / len;
     x -= step;
-    if (norm(step) < 1e-9 * (1 + norm(x))) break;
+    if (len < 1e-9 * (1 + norm(x))) return norm(x - x0);
   }
-  return norm(x - x0);
+  const double v = f.value_gradient(x, g) - iso;
+  return std::fabs(v) <= 1e-6 * (1 + norm(g)) ? norm(x - x0) : std::nan("");
 }
 
 double radius_ratio(const Vec3& a, const Vec3& b, const Vec3& c) {
@@ -124,19 +131,29 @@ MeshQuality mesh_quality(const Mesh& m, const MeshQualityParams& p) {
     for (std::size_t i = 0; i < m.vertices.size(); ++i)
       if (is_used[i]) {
         const double d = surface_distance(*p.field, p.iso, m.vertices[i]);
+        if (std::isnan(d)) {
+          ++q.dist_failed;
+          continue;
+        }
         q.dist_vertex_max = std::max(q.dist_vertex_max, d);
         sum += d;
         ++n;
       }
     q.dist_vertex_mean = n ? sum / double(n) : 0;
     sum = 0;
+    n = 0;
     for (const auto& f : m.faces) {
       const Vec3 c = (m.vertices[f[0]] + m.vertices[f[1]] + m.vertices[f[2]]) / 3.0;
       const double d = surface_distance(*p.field, p.iso, c);
+      if (std::isnan(d)) {
+        ++q.dist_failed;
+        continue;
+      }
       q.dist_centroid_max = std::max(q.dist_centroid_max, d);
       sum += d;
+      ++n;
     }
-    q.dist_centroid_mean = sum / double(m.faces.size());
+    q.dist_centroid_mean = n ? sum / double(n) : 0;
   }
   if (p.self_intersections) q.self_intersecting_pairs = count_self_intersections(m);
   return q;
@@ -158,7 +175,8 @@ Json to_json(const MeshQuality& q) {
     j["distance_to_surface"] = {{"vertex_max", q.dist_vertex_max},
                                 {"vertex_mean", q.dist_vertex_mean},
                                 {"centroid_max", q.dist_centroid_max},
-                                {"centroid_mean", q.dist_centroid_mean}};
+                                {"centroid_mean", q.dist_centroid_mean},
+                                {"not_projected", q.dist_failed}};
   const MeshTopology& t = q.topology;
   j["topology"] = {{"watertight", t.boundary_edges == 0},
                    {"manifold", t.nonmanifold_edges == 0 && t.nonmanifold_vertices == 0},

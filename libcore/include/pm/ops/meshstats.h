@@ -35,6 +35,7 @@ struct MeshQuality {
   // Distance to the isosurface (Newton projection), world units; only with a field.
   bool has_field = false;
   double dist_vertex_max = 0, dist_vertex_mean = 0, dist_centroid_max = 0, dist_centroid_mean = 0;
+  std::size_t dist_failed = 0;  ///< points whose projection did not converge (left out of the above)
   MeshTopology topology;
   int self_intersecting_pairs = -1;  ///< -1: not tested (non-manifold mesh or disabled)
   double edge_length_mean = 0;
