@@ -16,11 +16,16 @@ int main(int argc, char** argv) {
                 "inside and outside as a closed, outward-oriented triangle mesh (PLY, OBJ, OFF, STL by "
                 "extension). World units throughout.",
                 "tetlabel points.ply -i brain_sdf.nrrd --iso 0 -o surface.ply --tets brain.mesh");
-  std::string points, out, tets;
+  std::string points, out, tets, inside = "auto";
   pm::FieldOptions fo;
   tool.app.add_option("points", points, "Particles (PLY, OFF, OBJ, STL vertices), world units")->required();
   pm::add_field_options(tool.app, fo);
   tool.app.add_option("-o,--output", out, "Surface mesh to write (.ply .obj .off .stl)")->required();
+  tool.app.add_option("--inside", inside,
+                      "Which side is the material: below (F < iso, distance fields), above (F > iso, masks, CT "
+                      "intensities) or auto (the side the domain's corners are not on)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "below", "above"}));
   tool.app.add_option("--tets", tets, "Also write the inside tetrahedra as a MEDIT .mesh");
   return tool.run(argc, argv, [&] {
     auto& st = pm::stats();
@@ -44,7 +49,27 @@ int main(int argc, char** argv) {
       pm::ScopedStage s("label");
       const pm::ScalarField& f = *lf.field;
       const double iso = lf.iso;
-      ls = pm::label_tets(tm, [&](const pm::Vec3& x) { return f.value(x) < iso ? 1 : 0; });
+      // Circumcentres of hull tetrahedra can lie far outside the volume, where
+      // a reconstructed field only replicates its border: outside the domain
+      // is outside the material.
+      const pm::Box dom = f.domain();
+      bool below = inside == "below";
+      if (inside == "auto") {
+        int above_corners = 0;
+        for (int c = 0; c < 8; ++c) {
+          const pm::Vec3 x((c & 1) ? dom.hi.x : dom.lo.x, (c & 2) ? dom.hi.y : dom.lo.y, (c & 4) ? dom.hi.z : dom.lo.z);
+          above_corners += f.value(x) > iso;
+        }
+        below = above_corners >= 4;
+        pm::debug(std::string("material side: F ") + (below ? "< " : "> ") + "iso (auto: " +
+                  std::to_string(above_corners) + " of 8 domain corners above iso)");
+      }
+      st["parameters"] = {{"iso", iso}, {"inside", below ? "below" : "above"}};
+      ls = pm::label_tets(tm, [&](const pm::Vec3& x) {
+        if (!dom.contains(x)) return 0;
+        const double v = f.value(x);
+        return (below ? v < iso : v > iso) ? 1 : 0;
+      });
     }
     pm::Mesh surf = pm::material_surface(tm, 1, 0);
     if (surf.faces.empty())
