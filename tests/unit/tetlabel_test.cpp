@@ -123,3 +123,32 @@ TEST(TetLabel, BadInput) {
 
 }  // namespace
 }  // namespace pm
+
+namespace pm {
+namespace {
+
+TEST(TetLabel, MakeManifoldOpensPinches) {
+  // Two unit spheres touching at the origin, sampled with the touching point:
+  // the union's surface is pinched there.
+  std::vector<Vec3> pts;
+  for (const Vec3& p : fibonacci_sphere(800, 1.0)) {
+    pts.push_back(p + Vec3(1, 0, 0));
+    pts.push_back(p - Vec3(1, 0, 0));
+  }
+  pts.emplace_back(0, 0, 0);
+  TetMesh tm = delaunay(pts);
+  label_tets(tm, [](const Vec3& x) {
+    return std::min(norm(x - Vec3(1, 0, 0)), norm(x + Vec3(1, 0, 0))) < 1.0 ? 1 : 0;
+  });
+  const MeshTopology before = mesh_topology(material_surface(tm, 1, 0));
+  EXPECT_FALSE(before.closed_manifold());
+  const std::size_t flips = make_manifold(tm, 1, 0);
+  EXPECT_GT(flips, 0u);
+  const MeshTopology after = mesh_topology(material_surface(tm, 1, 0));
+  EXPECT_TRUE(after.closed_manifold()) << after.nonmanifold_edges << " nm edges, " << after.nonmanifold_vertices
+                                       << " nm vertices";
+  EXPECT_GE(after.vertices + 2, before.vertices);  // at most a couple of particles at the pinch are buried
+}
+
+}  // namespace
+}  // namespace pm

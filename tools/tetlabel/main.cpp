@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
                 "extension). World units throughout.",
                 "tetlabel points.ply -i brain_sdf.nrrd --iso 0 -o surface.ply --tets brain.mesh");
   std::string points, out, tets, inside = "auto";
+  bool repair = true;
   pm::FieldOptions fo;
   tool.app.add_option("points", points, "Particles (PLY, OFF, OBJ, STL vertices), world units")->required();
   pm::add_field_options(tool.app, fo);
@@ -26,6 +27,8 @@ int main(int argc, char** argv) {
                       "intensities) or auto (the side the domain's corners are not on)")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "below", "above"}));
+  tool.app.add_flag("--repair,!--no-repair", repair,
+                    "Relabel tetrahedra at pinched vertices so the surface is a manifold (default on)");
   tool.app.add_option("--tets", tets, "Also write the inside tetrahedra as a MEDIT .mesh");
   return tool.run(argc, argv, [&] {
     auto& st = pm::stats();
@@ -71,6 +74,11 @@ int main(int argc, char** argv) {
         return (below ? v < iso : v > iso) ? 1 : 0;
       });
     }
+    std::size_t relabelled = 0;
+    if (repair) {
+      pm::ScopedStage s("manifold");
+      relabelled = pm::make_manifold(tm, 1, 0);
+    }
     pm::Mesh surf = pm::material_surface(tm, 1, 0);
     if (surf.faces.empty())
       throw pm::InputError(pm::quote(points) + ": no tetrahedron is inside the surface F < " +
@@ -94,6 +102,7 @@ int main(int argc, char** argv) {
              std::to_string(t.components) + " component(s), genus " + std::to_string(t.genus));
     st["outputs"] = tets.empty() ? pm::Json{out} : pm::Json{out, tets};
     st["counts"] = {{"particles", pts.vertices.size()}, {"tetrahedra", ls.tets}, {"degenerate_tetrahedra", ls.flat},
+                    {"relabelled_for_manifold", relabelled},
                     {"vertices", t.vertices}, {"faces", t.faces}, {"particles_not_on_surface", buried},
                     {"components", t.components}, {"genus", t.genus}, {"boundary_edges", t.boundary_edges},
                     {"nonmanifold_edges", t.nonmanifold_edges}, {"nonmanifold_vertices", t.nonmanifold_vertices}};

@@ -249,6 +249,113 @@ Mesh material_surface(const TetMesh& tm, int label, int outside_label) {
       tm, outside_label, [label](int l, int ln) { return l == label ? 1 : (ln == label ? -1 : 0); }, false);
 }
 
+namespace {
+struct ManifoldChecker {
+  const TetMesh& tm;
+  int label, outside;
+  std::vector<std::vector<int>> vt;  // vertex -> incident tets
+
+  ManifoldChecker(const TetMesh& t, int l, int o) : tm(t), label(l), outside(o), vt(t.points.size()) {
+    for (std::size_t i = 0; i < tm.tets.size(); ++i)
+      for (int v : tm.tets[i]) vt[v].push_back(int(i));
+  }
+  bool member(int t) const { return t >= 0 && tm.labels[t] == label; }
+  // True when the material's faces at v form one closed fan (or none).
+  bool ok(int v) const {
+    std::vector<std::pair<int, int>> edges;  // the two other vertices of each face at v
+    for (int t : vt[v]) {
+      if (!member(t)) continue;
+      const auto& tv = tm.tets[t];
+      for (int i = 0; i < 4; ++i) {
+        if (tv[i] == v) continue;
+        if (member(tm.neighbours[t][i])) continue;
+        int a = -1, b = -1;
+        for (int k = 0; k < 3; ++k) {
+          const int w = tv[kFace[i][k]];
+          if (w == v) continue;
+          (a < 0 ? a : b) = w;
+        }
+        edges.emplace_back(a, b);
+      }
+    }
+    if (edges.empty()) return true;
+    std::unordered_map<int, std::vector<int>> adj;
+    for (const auto& [a, b] : edges) {
+      adj[a].push_back(b);
+      adj[b].push_back(a);
+    }
+    for (const auto& [w, n] : adj)
+      if (n.size() != 2) return false;
+    // One cycle: walk it.
+    std::size_t steps = 0;
+    int prev = -1, cur = edges[0].first;
+    const int start = cur;
+    do {
+      const auto& n = adj[cur];
+      const int next = n[0] != prev ? n[0] : n[1];
+      prev = cur;
+      cur = next;
+      ++steps;
+    } while (cur != start && steps <= edges.size());
+    return steps == edges.size();
+  }
+  bool ok_around(int t) const {
+    for (int v : tm.tets[t])
+      if (!ok(v)) return false;
+    return true;
+  }
+};
+
+int other_label(const TetMesh& tm, int t, int label, int outside) {
+  int votes[4], n = 0;
+  for (int nb : tm.neighbours[t]) {
+    const int l = nb < 0 ? outside : tm.labels[nb];
+    if (l != label) votes[n++] = l;
+  }
+  if (n == 0) return outside;
+  int best = votes[0], best_count = 0;
+  for (int i = 0; i < n; ++i) {
+    int c = 0;
+    for (int j = 0; j < n; ++j) c += votes[j] == votes[i];
+    if (c > best_count || (c == best_count && votes[i] < best)) best = votes[i], best_count = c;
+  }
+  return best;
+}
+}  // namespace
+
+std::size_t make_manifold(TetMesh& tm, int label, int outside_label) {
+  if (tm.labels.size() != tm.tets.size()) throw Error("make_manifold: tetrahedra are not labelled");
+  ManifoldChecker mc(tm, label, outside_label);
+  std::size_t flips = 0;
+  for (int round = 0; round < 4; ++round) {
+    std::vector<int> bad;
+    for (std::size_t v = 0; v < tm.points.size(); ++v)
+      if (!mc.vt[v].empty() && !mc.ok(int(v))) bad.push_back(int(v));
+    if (bad.empty()) break;
+    for (int v : bad) {
+      if (mc.ok(v)) continue;
+      bool fixed = false;
+      for (int t : mc.vt[v]) {
+        const int old = tm.labels[t];
+        tm.labels[t] = old == label ? other_label(tm, t, label, outside_label) : label;
+        if (mc.ok_around(t)) {
+          fixed = true;
+          ++flips;
+          break;
+        }
+        tm.labels[t] = old;
+      }
+      if (fixed) continue;
+      for (int t : mc.vt[v])
+        if (tm.labels[t] != label) {
+          tm.labels[t] = label;
+          ++flips;
+        }
+    }
+  }
+  return flips;
+}
+
 void write_medit(const TetMesh& tm, int outside_label, const std::string& path) {
   write_atomically(path, [&](const std::string& tmp) {
     std::FILE* f = std::fopen(tmp.c_str(), "w");

@@ -48,6 +48,16 @@ struct TetLabelStats {
 /// Label every tetrahedron by `label` at its circumcentre (centroid for flat ones).
 TetLabelStats label_tets(TetMesh& tm, const LabelFunction& label, const TetLabelParams& p = {});
 
+/// Make the surface of material `label` a manifold: at every vertex where its
+/// faces form more than one fan or an edge has more than two faces (a pinch
+/// where the surface nearly touches itself, e.g. across a thin gap), relabel
+/// tetrahedra around that vertex: first a single tetrahedron whose flip fixes
+/// the vertex without breaking its neighbours, else every tetrahedron around
+/// it joins the material (the vertex is then buried). Returns the number of
+/// tetrahedra relabelled. A relabelled tetrahedron leaving the material takes
+/// the most common other label among its face neighbours.
+std::size_t make_manifold(TetMesh& tm, int label, int outside_label);
+
 /// Every face between two differently labelled tetrahedra; hull faces border
 /// `outside_label`. Face properties `label_a`, `label_b` (label_a < label_b),
 /// oriented so the normal points from label_a into label_b. Vertices are the
