@@ -147,7 +147,8 @@ TEST(TetLabel, MakeManifoldOpensPinches) {
   const MeshTopology after = mesh_topology(material_surface(tm, 1, 0));
   EXPECT_TRUE(after.closed_manifold()) << after.nonmanifold_edges << " nm edges, " << after.nonmanifold_vertices
                                        << " nm vertices";
-  EXPECT_GE(after.vertices + 2, before.vertices);  // at most a couple of particles at the pinch are buried
+  // Only the contact point and its first ring (about 6 particles) may be buried.
+  EXPECT_GE(after.vertices + 10, before.vertices);
 }
 
 }  // namespace
