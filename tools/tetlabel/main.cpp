@@ -56,17 +56,7 @@ int main(int argc, char** argv) {
       // a reconstructed field only replicates its border: outside the domain
       // is outside the material.
       const pm::Box dom = f.domain();
-      bool below = inside == "below";
-      if (inside == "auto") {
-        int above_corners = 0;
-        for (int c = 0; c < 8; ++c) {
-          const pm::Vec3 x((c & 1) ? dom.hi.x : dom.lo.x, (c & 2) ? dom.hi.y : dom.lo.y, (c & 4) ? dom.hi.z : dom.lo.z);
-          above_corners += f.value(x) > iso;
-        }
-        below = above_corners >= 4;
-        pm::debug(std::string("material side: F ") + (below ? "< " : "> ") + "iso (auto: " +
-                  std::to_string(above_corners) + " of 8 domain corners above iso)");
-      }
+      const bool below = inside == "auto" ? pm::material_below_iso(f, iso) : inside == "below";
       st["parameters"] = {{"iso", iso}, {"inside", below ? "below" : "above"}};
       ls = pm::label_tets(tm, [&](const pm::Vec3& x) {
         if (!dom.contains(x)) return 0;

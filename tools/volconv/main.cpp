@@ -6,7 +6,9 @@
 #include "pm/base/log.h"
 #include "pm/base/stats.h"
 #include "pm/cli/run_tool.h"
+#include "pm/field/distance.h"
 #include "pm/field/mesh_sdf.h"
+#include "pm/field/volume_field.h"
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
 #include "pm/ops/labels.h"
@@ -57,7 +59,8 @@ int main(int argc, char** argv) {
                 "(.off/.obj/.ply/.stl) into a signed distance volume (negative inside, world units); --labels "
                 "and --merge make masks and relabel label maps.",
                 "volconv brain.nii.gz brain.nrrd && volconv bunny.off bunny.nrrd --sdf --voxel 0.002");
-  std::string in, out, labels, merge, type;
+  std::string in, out, labels, merge, type, inside = "auto";
+  double distance_iso = 0;
   bool info = false, sdf = false, allow_nonfinite = false;
   pm::MeshSdfParams sp;
   tool.app.add_option("input", in, "Input volume, or mesh with --sdf")->required();
@@ -69,6 +72,14 @@ int main(int argc, char** argv) {
   tool.app.add_option("--band", sp.band, "With --sdf: narrow band half-width in voxels; 0 = exact distance in the "
                                          "whole box")->capture_default_str();
   tool.app.add_option("--padding", sp.padding, "With --sdf: voxels of margin around the mesh")->capture_default_str();
+  auto* dist = tool.app.add_option("--distance", distance_iso,
+                                   "Write the signed distance (world units, negative inside) to the level set "
+                                   "F = ISO of the input volume (grey values, masks: 0.5)");
+  tool.app.add_option("--inside", inside,
+                      "With --distance: the material is below ISO (distance fields), above (masks, CT) or auto "
+                      "(the side the volume's corners are not on)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "below", "above"}));
   tool.app.add_option("--labels", labels, "Write a uint8 mask (1/0) of these labels, e.g. \"2,41\" or \"2-5\"");
   tool.app.add_option("--merge", merge, "Relabel before anything else: \"1,2:1 3,4:2\" maps 1,2 to 1 and 3,4 to 2");
   tool.app.add_flag("--allow-nonfinite", allow_nonfinite, "Copy NaN/Inf voxels instead of refusing the input");
@@ -108,6 +119,21 @@ int main(int argc, char** argv) {
         v = pm::merge_labels(v, rules);
       }
       if (!labels.empty()) v = pm::label_mask(v, pm::parse_label_list(labels), pm::quote(in));
+      if (dist->count() > 0) {
+        pm::ScopedStage stage("distance");
+        bool below = inside == "below";
+        if (inside == "auto") below = pm::material_below_iso(pm::VolumeField(v, {}, in), distance_iso);
+        pm::DistanceParams dp;
+        dp.iso = distance_iso;
+        try {
+          v = pm::signed_distance(v, dp);
+        } catch (const pm::InputError& e) {
+          throw pm::InputError(pm::quote(in) + ": " + e.what());
+        }
+        if (!below)
+          for (std::size_t i = 0; i < v.count(); ++i) v.set(i, -v.get(i));
+        st["parameters"] = {{"distance_iso", distance_iso}, {"inside", below ? "below" : "above"}};
+      }
     }
     if (!type.empty()) v = v.converted(pm::parse_voxel_type(type));
     pm::write_volume(v, out);

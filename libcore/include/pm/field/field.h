@@ -26,4 +26,10 @@ class ScalarField {
   virtual std::string describe() const = 0;
 };
 
+/// Which side of F = iso is the material: true when it is F < iso (distance
+/// fields), false when it is F > iso (masks, CT intensities). Decided by the
+/// eight corners of the field's domain, which are taken to be outside: the
+/// material is below iso when at least four corners are above it.
+bool material_below_iso(const ScalarField& f, double iso);
+
 }  // namespace pm
