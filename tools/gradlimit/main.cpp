@@ -1,1 +1,67 @@
-int main() { return 0; }
+// gradlimit: Persson's gradient limiting of a sizing field (SPEC §5,
+// dissertation §5.3.2).
+#include <sstream>
+
+#include "pm/base/error.h"
+#include "pm/base/log.h"
+#include "pm/base/stats.h"
+#include "pm/cli/run_tool.h"
+#include "pm/io/volume_io.h"
+#include "pm/ops/gradlimit.h"
+
+int main(int argc, char** argv) {
+  pm::Tool tool("gradlimit",
+                "Limit the gradient of a sizing field h (world units; spacing from the header): output the "
+                "largest h' <= h with |grad h'| <= delta. Voxels with h <= 0 (or NaN/Inf with --nan-unknown) are "
+                "unknown and receive the extension min_y h(y) + delta |x - y|, so the output is > 0 everywhere.",
+                "gradlimit sizing.nrrd sizing_limited.nrrd --delta 0.3");
+  std::string in, out, method = "propagate";
+  pm::GradLimitParams p;
+  tool.app.add_option("input", in, "Sizing field h, float voxels, world units")->required();
+  tool.app.add_option("output", out, "Limited sizing field (format by extension)")->required();
+  tool.app.add_option("--delta", p.delta, "Gradient bound |grad h| <= delta, dimensionless (> 0)")->capture_default_str();
+  tool.app.add_option("--tolerance", p.tolerance, "upwind: stop when the largest relative change per sweep is below this")
+      ->capture_default_str();
+  tool.app.add_option("--method", method, "propagate (one ordered pass, exact 26-neighbour bound) or upwind "
+                                          "(Persson's explicit iteration; slow, for reference)")
+      ->capture_default_str();
+  tool.app.add_flag("--nan-unknown", p.nonfinite_unknown, "Treat NaN/Inf voxels as unknown instead of refusing them");
+
+  return tool.run(argc, argv, [&] {
+    auto& st = pm::stats();
+    if (!pm::is_volume_path(out))
+      throw pm::UsageError("output " + pm::quote(out) + ": unknown volume extension; expected .nrrd .nhdr .vdb .mha "
+                           ".mhd .nii .nii.gz .inr .inr.gz");
+    if (method == "propagate")
+      p.method = pm::GradLimitMethod::propagate;
+    else if (method == "upwind")
+      p.method = pm::GradLimitMethod::upwind;
+    else
+      throw pm::UsageError("--method \"" + method + "\"; expected propagate or upwind");
+    if (!(p.delta > 0)) {
+      std::ostringstream m;
+      m << "--delta " << p.delta << "; expected > 0 (e.g. 0.3)";
+      throw pm::UsageError(m.str());
+    }
+    st["inputs"] = {in};
+    st["parameters"] = {{"delta", p.delta}, {"tolerance", p.tolerance}, {"method", method},
+                        {"nan_unknown", p.nonfinite_unknown}};
+    const pm::Volume h = pm::read_volume(in);
+    pm::GradLimitResult r;
+    {
+      pm::ScopedStage stage("gradlimit");
+      try {
+        r = pm::gradient_limit(h, p);
+      } catch (const pm::InputError& e) {
+        throw pm::InputError(pm::quote(in) + ": " + e.what());
+      }
+    }
+    pm::write_volume(r.h, out);
+    st["outputs"] = {out};
+    st["counts"] = {{"voxels", h.count()},       {"known", r.known},
+                    {"unknown", r.unknown},      {"lowered", r.lowered},
+                    {"iterations", r.iterations}, {"max_slope_over_delta", r.max_slope_ratio}};
+    pm::info(std::to_string(r.lowered) + " of " + std::to_string(r.known) + " known voxels lowered, " +
+             std::to_string(r.unknown) + " unknown voxels extended");
+  });
+}
