@@ -1,1 +1,141 @@
+#include "pm/ops/sizingfield.h"
+
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+
+#include "pm/base/error.h"
+#include "pm/ops/medialaxis.h"
+
+namespace pm {
+namespace {
+
+Volume sample(Dims d, const Geometry& g, const std::function<double(const Vec3&)>& F) {
+  Volume v(VoxelType::f32, d, g);
+  for (std::size_t k = 0; k < d.nz; ++k)
+    for (std::size_t j = 0; j < d.ny; ++j)
+      for (std::size_t i = 0; i < d.nx; ++i)
+        v.set(i, j, k, F(g.index_to_world(Vec3(double(i), double(j), double(k)))));
+  return v;
+}
+
+// Calls f(node value of sdf, h, lfs) for every node.
+void each_node(const Volume& sdf, const SizingFieldResult& r, const std::function<void(double, double, double)>& f) {
+  for (std::size_t c = 0; c < sdf.count(); ++c) f(sdf.get(c), r.h.get(c), r.lfs.get(c));
+}
+
+TEST(SizingField, SphereLfsIsRadius) {
+  const double R = 8;
+  const Vec3 c(0.2, -0.3, 0.1);
+  const Geometry g = Geometry::with_spacing(1, 1, 1, Vec3(-13, -13, -13));
+  const Volume sdf = sample({27, 27, 27}, g, [&](const Vec3& x) { return norm(x - c) - R; });
+  const std::vector<Vec3> ma = medial_axis(sdf).points.vertices;
+  ASSERT_FALSE(ma.empty());
+  SizingFieldParams p;  // eps 0.5, contraction 1.5
+  const SizingFieldResult r = sizing_field({{sdf, ma}}, p);
+  std::size_t near = 0;
+  each_node(sdf, r, [&](double d, double h, double lfs) {
+    if (std::fabs(d) > 4) {
+      EXPECT_EQ(h, 0);  // outside the band: unknown
+      return;
+    }
+    EXPECT_GT(h, 0);
+    if (std::fabs(d) < 1) {
+      ++near;
+      EXPECT_NEAR(lfs, R, 1.0);
+      EXPECT_NEAR(h, 2 * 0.5 * R / 1.5, 1.0 / 1.5);  // λ = 1/κ = R, within a voxel
+    }
+  });
+  EXPECT_GT(near, 500u);
+  EXPECT_NEAR(r.lfs_lo, R, 1.0);  // foot points: every band node sees the sphere's own LFS
+}
+
+TEST(SizingField, SlabLfsIsHalfThickness) {
+  const double t = 6;
+  const Geometry g = Geometry::with_spacing(1, 1, 1, Vec3(-6, -6, -8.4));
+  const Volume sdf = sample({13, 13, 18}, g, [&](const Vec3& x) { return std::fabs(x.z) - t / 2; });
+  const std::vector<Vec3> ma = medial_axis(sdf).points.vertices;
+  SizingFieldParams p;
+  p.contract = false;
+  p.eps = 0.4;
+  const SizingFieldResult r = sizing_field({{sdf, ma}}, p);
+  std::size_t n = 0;
+  for (std::size_t k = 0; k < 18; ++k)
+    for (std::size_t j = 2; j <= 10; ++j)  // away from the x and y borders, where the
+      for (std::size_t i = 2; i <= 10; ++i) {  // medial axis is cut off
+        if (std::fabs(sdf.get(i, j, k)) >= 1) continue;
+        ++n;
+        EXPECT_NEAR(r.lfs.get(i, j, k), t / 2, 0.3);
+        EXPECT_NEAR(r.h.get(i, j, k), 2 * 0.4 * r.lfs.get(i, j, k), 1e-4);  // flat: curvature never wins
+      }
+  EXPECT_GT(n, 100u);
+  EXPECT_EQ(r.curvature_limited, 0u);
+}
+
+TEST(SizingField, CurvatureTakesOverWhenSmaller) {
+  // A small sphere whose "medial axis" is a far point: λ is large, 1/κ = R decides.
+  const double R = 3;
+  const Geometry g = Geometry::with_spacing(0.5, 0.5, 0.5, Vec3(-5, -5, -5));
+  const Volume sdf = sample({21, 21, 21}, g, [&](const Vec3& x) { return norm(x) - R; });
+  const std::vector<Vec3> far{Vec3(40, 0, 0)};
+  const SizingFieldResult r = sizing_field({{sdf, far}});
+  EXPECT_EQ(r.curvature_limited, r.known);
+  each_node(sdf, r, [&](double d, double h, double lfs) {
+    if (std::fabs(d) >= 0.5) return;
+    EXPECT_GT(lfs, 30);
+    EXPECT_NEAR(h, 2 * 0.5 * R / 1.5, 0.05);
+  });
+}
+
+TEST(SizingField, HminBandAndSeveralSurfaces) {
+  const Geometry g = Geometry::with_spacing(1, 1, 1, Vec3(-10, -6, -6));
+  const Dims dims{21, 13, 13};
+  const Vec3 c1(-4, 0, 0), c2(4.5, 0, 0);
+  const Volume a = sample(dims, g, [&](const Vec3& x) { return norm(x - c1) - 4; });
+  const Volume b = sample(dims, g, [&](const Vec3& x) { return norm(x - c2) - 2; });
+  const std::vector<Vec3> ma_a{c1}, ma_b{c2};
+  SizingFieldParams p;
+  p.band = 2;
+  p.hmin = 1.5;
+  const SizingFieldResult r = sizing_field({{a, ma_a}, {b, ma_b}}, p);
+  for (std::size_t k = 0; k < dims.nz; ++k)
+    for (std::size_t j = 0; j < dims.ny; ++j)
+      for (std::size_t i = 0; i < dims.nx; ++i) {
+        const double da = a.get(i, j, k), db = b.get(i, j, k), h = r.h.get(i, j, k);
+        if (std::fabs(da) > 2 && std::fabs(db) > 2) {
+          EXPECT_EQ(h, 0);
+          continue;
+        }
+        EXPECT_GE(h, 1.5 - 1e-6);  // hmin
+        if (std::fabs(db) <= 2) EXPECT_NEAR(h, 1.5, 1e-4);  // 2·0.5·2/1.5 = 1.33 raised to hmin
+        else EXPECT_NEAR(h, 2 * 0.5 * 4 / 1.5, 0.3);
+      }
+  EXPECT_GT(r.hmin_limited, 0u);
+}
+
+TEST(SizingField, BadInput) {
+  const Geometry g = Geometry::with_spacing(1, 1, 1, Vec3(-5, -5, -5));
+  const Volume sdf = sample({11, 11, 11}, g, [](const Vec3& x) { return norm(x) - 3; });
+  const std::vector<Vec3> ma{Vec3()}, none;
+  SizingFieldParams p;
+  p.eps = 0;
+  EXPECT_THROW(sizing_field({{sdf, ma}}, p), UsageError);
+  p.eps = 0.5;
+  p.hmin = -1;
+  EXPECT_THROW(sizing_field({{sdf, ma}}, p), UsageError);
+  p.hmin = 0;
+  try {
+    sizing_field({{sdf, none}}, p);
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("no points"), std::string::npos) << e.what();
+  }
+  const Volume other = sample({11, 11, 12}, g, [](const Vec3& x) { return norm(x) - 3; });
+  EXPECT_THROW(sizing_field({{sdf, ma}, {other, ma}}, p), InputError);
+  const Volume positive = sample({11, 11, 11}, g, [](const Vec3& x) { return norm(x) + 1; });
+  EXPECT_THROW(sizing_field({{positive, ma}}, p), InputError);
+}
+
+}  // namespace
+}  // namespace pm

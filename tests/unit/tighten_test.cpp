@@ -1,1 +1,199 @@
+#include "pm/ops/tighten.h"
+
 #include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+
+#include "pm/base/error.h"
+#include "pm/field/curvature.h"
+#include "pm/field/distance.h"
+#include "pm/field/volume_field.h"
+
+namespace pm {
+namespace {
+
+Volume mask_of(Dims d, const Geometry& g, const std::function<bool(const Vec3&)>& in) {
+  Volume v(VoxelType::u8, d, g);
+  for (std::size_t k = 0; k < d.nz; ++k)
+    for (std::size_t j = 0; j < d.ny; ++j)
+      for (std::size_t i = 0; i < d.nx; ++i)
+        v.set(i, j, k, in(g.index_to_world(Vec3(double(i), double(j), double(k)))) ? 1 : 0);
+  return v;
+}
+
+// Zero-set points of a distance volume: linear crossings along the grid edges.
+std::vector<Vec3> zero_set(const Volume& d) {
+  std::vector<Vec3> pts;
+  const Dims& n = d.dims();
+  for (std::size_t k = 0; k < n.nz; ++k)
+    for (std::size_t j = 0; j < n.ny; ++j)
+      for (std::size_t i = 0; i < n.nx; ++i) {
+        const double a = d.get(i, j, k);
+        const std::size_t nb[3][3] = {{i + 1, j, k}, {i, j + 1, k}, {i, j, k + 1}};
+        for (const auto& q : nb) {
+          if (q[0] >= n.nx || q[1] >= n.ny || q[2] >= n.nz) continue;
+          const double b = d.get(q[0], q[1], q[2]);
+          if ((a < 0) == (b < 0)) continue;
+          const double t = a / (a - b);
+          const Vec3 x0{double(i), double(j), double(k)};
+          const Vec3 x1{double(q[0]), double(q[1]), double(q[2])};
+          pts.push_back(d.geometry().index_to_world(x0 + (x1 - x0) * t));
+        }
+      }
+  return pts;
+}
+
+// Largest principal curvature magnitude over the zero set (B-spline reconstruction).
+double max_curvature(const Volume& d) {
+  const VolumeField f(d);
+  double worst = 0;
+  for (const Vec3& x : zero_set(d)) {
+    Vec3 g;
+    Mat3 H;
+    f.evaluate(x, g, H);
+    const Curvature c = curvature(g, H);
+    worst = std::max(worst, std::max(std::fabs(c.k1), std::fabs(c.k2)));
+  }
+  return worst;
+}
+
+TEST(Tighten, BinaryMaskChecks) {
+  Volume grey(VoxelType::f32, {187, 1, 1});
+  for (std::size_t i = 0; i < 187; ++i) grey.set(i, 0, 0, 0.5 * double(i));
+  try {
+    binary_mask_inside(grey);
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("expected a binary mask (2 distinct values), got 187 values"),
+              std::string::npos)
+        << e.what();
+  }
+  Volume flat(VoxelType::u8, {3, 3, 3});
+  try {
+    binary_mask_inside(flat);
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("empty mask"), std::string::npos) << e.what();
+  }
+  Volume m(VoxelType::i16, {2, 1, 1});
+  m.set(0, 0, 0, -3);
+  m.set(1, 0, 0, 255);
+  const auto in = binary_mask_inside(m);
+  EXPECT_EQ(in[0], 0);
+  EXPECT_EQ(in[1], 1);  // the larger value is inside
+}
+
+TEST(Tighten, CubeCurvatureBoundedAndInsideMortar) {
+  const double r = 4;
+  const Geometry g = Geometry::with_spacing(1, 1, 1);
+  const Volume box = mask_of({40, 40, 40}, g, [](const Vec3& x) {
+    return x.x >= 10 && x.x <= 29 && x.y >= 10 && x.y <= 29 && x.z >= 10 && x.z <= 29;
+  });
+  // The untightened box has curvature far above 1/r at its edges: the bound below can fail.
+  EXPECT_GT(max_curvature(mask_signed_distance(box)), 2.0 / r);
+
+  TightenParams p;
+  p.radius = r;
+  p.keep_mortar = true;
+  const TightenResult t = tighten(box, p);
+  EXPECT_EQ(t.pad, 0u);
+  EXPECT_TRUE(t.converged);
+  EXPECT_LE(max_curvature(t.distance), 1.1 / r);
+
+  // Every zero-set point lies in the mortar: outside the round, inside the fillet.
+  const VolumeField round(t.round, VolumeFieldParams{KernelType::catmull_rom, KernelType::catmull_rom});
+  const VolumeField fillet(t.fillet, VolumeFieldParams{KernelType::catmull_rom, KernelType::catmull_rom});
+  const double tol = 0.1;  // voxels
+  double worst_round = 1e9, worst_fillet = -1e9;
+  for (const Vec3& x : zero_set(t.distance)) {
+    worst_round = std::min(worst_round, round.value(x));
+    worst_fillet = std::max(worst_fillet, fillet.value(x));
+  }
+  EXPECT_GE(worst_round, -tol);
+  EXPECT_LE(worst_fillet, tol);
+}
+
+TEST(Tighten, LargeSphereNearlyUnchanged) {
+  const double R = 12;
+  const Geometry g = Geometry::with_spacing(1, 1, 1, Vec3(-18, -18, -18));
+  const Volume ball = mask_of({37, 37, 37}, g, [&](const Vec3& x) { return norm(x) <= R; });
+  TightenParams p;
+  p.radius = 2;
+  const TightenResult t = tighten(ball, p);
+  // Mean radius of the zero set before (about R) and after: a convex shape
+  // settles on its round, a few tenths of a voxel inside the staircase.
+  auto radii = [](const Volume& d, double& lo, double& hi) {
+    double sum = 0;
+    lo = 1e9;
+    hi = 0;
+    const auto pts = zero_set(d);
+    for (const Vec3& x : pts) {
+      lo = std::min(lo, norm(x));
+      hi = std::max(hi, norm(x));
+      sum += norm(x);
+    }
+    return sum / double(pts.size());
+  };
+  double lo0, hi0, lo, hi;
+  const double before = radii(mask_signed_distance(ball), lo0, hi0);
+  const double after = radii(t.distance, lo, hi);
+  EXPECT_NEAR(before, R, 0.1);
+  EXPECT_NEAR(after, before, 0.3);
+  EXPECT_LT(hi - lo, hi0 - lo0);  // smoother: a narrower spread of radii
+  EXPECT_GT(lo, R - 0.6);
+  EXPECT_LT(hi, R + 0.6);
+  EXPECT_LE(max_curvature(t.distance), 1.1 / p.radius);
+}
+
+TEST(Tighten, PadsMaskTouchingTheBorder) {
+  const Geometry g = Geometry::with_spacing(2, 2, 2, Vec3(10, 20, 30));
+  const Volume m = mask_of({12, 12, 12}, g, [&](const Vec3& x) { return x.x <= 18; });  // slab at the border
+  TightenParams p;
+  p.radius = 2;
+  const TightenResult t = tighten(m, p);
+  ASSERT_EQ(t.pad, 4u);  // ceil(r/h) + 3 voxels
+  EXPECT_EQ(t.distance.dims().nx, 12u + 8u);
+  EXPECT_NEAR(t.distance.geometry().origin.x, 10 - 8, 1e-12);
+  EXPECT_NEAR(t.distance.geometry().origin.z, 30 - 8, 1e-12);
+  // The slab's face x = 19 (halfway between nodes 18 and 20) is flat: unchanged.
+  const VolumeField f(t.distance, VolumeFieldParams{KernelType::catmull_rom, KernelType::catmull_rom});
+  EXPECT_NEAR(f.value(Vec3(19, 31, 41)), 0.0, 0.05);
+  EXPECT_NEAR(f.value(Vec3(24, 31, 41)), 5.0, 0.1);
+}
+
+TEST(Tighten, UpsampleAndSign) {
+  const double R = 5;
+  const Geometry g = Geometry::with_spacing(1, 1, 1, Vec3(-9, -9, -9));
+  const Volume ball = mask_of({19, 19, 19}, g, [&](const Vec3& x) { return norm(x) <= R; });
+  TightenParams p;
+  p.radius = 0.6;
+  p.upsample = 2;
+  p.positive_inside = true;
+  const TightenResult t = tighten(ball, p);
+  EXPECT_EQ(t.distance.dims().nx, 37u);
+  EXPECT_NEAR(t.distance.geometry().spacing(0), 0.5, 1e-12);
+  EXPECT_NEAR(t.distance.geometry().origin.x, -9, 1e-12);
+  const VolumeField f(t.distance, VolumeFieldParams{KernelType::catmull_rom, KernelType::catmull_rom});
+  EXPECT_GT(f.value(Vec3(0, 0, 0)), 4.5);   // positive inside
+  EXPECT_LT(f.value(Vec3(0, 0, 7)), -1.5);  // negative outside
+  double sum = 0;
+  const auto pts = zero_set(t.distance);
+  for (const Vec3& x : pts) sum += norm(x);
+  EXPECT_NEAR(sum / double(pts.size()), R, 0.3);  // the voxelised surface is about R
+}
+
+TEST(Tighten, RejectsBadRadius) {
+  Volume m(VoxelType::u8, {8, 8, 8});
+  m.set(4, 4, 4, 1);
+  TightenParams p;
+  p.radius = 0;
+  EXPECT_THROW(tighten(m, p), UsageError);
+  p.radius = 1;
+  p.upsample = 0;
+  EXPECT_THROW(tighten(m, p), UsageError);
+}
+
+}  // namespace
+}  // namespace pm

@@ -1,1 +1,426 @@
-// stub: to be implemented
+#include "pm/field/distance.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <cfloat>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <sstream>
+
+#include "pm/base/error.h"
+
+namespace pm {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+struct Line {
+  std::vector<double> f, z;
+  std::vector<std::int32_t> site, v;
+  std::vector<float> out_f;
+  std::vector<std::int32_t> out_site;
+  void resize(std::size_t n) {
+    f.resize(n);
+    z.resize(n + 1);
+    site.resize(n);
+    v.resize(n);
+    out_f.resize(n);
+    out_site.resize(n);
+  }
+};
+
+// Lower envelope of parabolas (Felzenszwalb & Huttenlocher 2012) along one
+// line of n samples with spacing h: out_f[x] = min_q f[q] + (h (x - q))², and
+// out_site[x] = site[q] of the minimising q. Infinite f[q] are not sites.
+void envelope_1d(Line& L, std::size_t n, double h) {
+  const double hh = h * h;
+  int k = -1;
+  for (std::size_t q = 0; q < n; ++q) {
+    if (!(L.f[q] < kInf)) continue;
+    const double fq = L.f[q] + hh * double(q) * double(q);
+    double s = -kInf;
+    while (k >= 0) {
+      const std::size_t p = std::size_t(L.v[std::size_t(k)]);
+      s = (fq - (L.f[p] + hh * double(p) * double(p))) / (2.0 * hh * (double(q) - double(p)));
+      if (s <= L.z[std::size_t(k)]) --k;
+      else break;
+    }
+    ++k;
+    L.v[std::size_t(k)] = std::int32_t(q);
+    L.z[std::size_t(k)] = k == 0 ? -kInf : s;
+    L.z[std::size_t(k) + 1] = kInf;
+  }
+  if (k < 0) {
+    std::fill(L.out_f.begin(), L.out_f.begin() + long(n), std::numeric_limits<float>::infinity());
+    std::fill(L.out_site.begin(), L.out_site.begin() + long(n), -1);
+    return;
+  }
+  std::size_t j = 0;
+  for (std::size_t x = 0; x < n; ++x) {
+    while (L.z[j + 1] < double(x)) ++j;
+    const std::size_t q = std::size_t(L.v[j]);
+    const double dx = h * (double(x) - double(q));
+    L.out_f[x] = float(L.f[q] + dx * dx);
+    L.out_site[x] = L.site[q];
+  }
+}
+
+void check_orthogonal(const Geometry& g, const char* who) {
+  for (int a = 0; a < 3; ++a)
+    for (int b = a + 1; b < 3; ++b) {
+      const Vec3 ca = g.directions.column(a), cb = g.directions.column(b);
+      const double c = std::fabs(dot(ca, cb)) / (norm(ca) * norm(cb));
+      if (!(c < 1e-6)) {
+        std::ostringstream m;
+        m << who << ": axes " << a << " and " << b << " are not orthogonal (cos = " << c
+          << "); expected an orthogonal direction matrix";
+        throw InputError(m.str());
+      }
+    }
+  for (int a = 0; a < 3; ++a)
+    if (!(g.spacing(a) > 0) || !std::isfinite(g.spacing(a)))
+      throw InputError(std::string(who) + ": axis " + std::to_string(a) + " has zero or non-finite spacing");
+}
+
+}  // namespace
+
+std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims, const Geometry& g,
+                                   const DistanceParams& p) {
+  const char* who = "signed_distance";
+  if (f.size() != dims.count())
+    throw InputError(std::string(who) + ": " + std::to_string(f.size()) + " values for a grid of " +
+                     std::to_string(dims.count()) + " nodes");
+  check_orthogonal(g, who);
+  if (dims.count() >= std::size_t(std::numeric_limits<std::int32_t>::max()))
+    throw InputError(std::string(who) + ": grid too large (" + std::to_string(dims.count()) +
+                     " nodes); expected < 2^31");
+  const std::size_t nx = dims.nx, ny = dims.ny, nz = dims.nz, nxy = nx * ny, n = dims.count();
+  const double h[3] = {g.spacing(0), g.spacing(1), g.spacing(2)};
+  const std::size_t stride[3] = {1, nx, nxy};
+  const double iso = p.iso;
+  auto below = [&](std::size_t i) { return double(f[i]) < iso; };
+
+  // 1. Band nodes (a face neighbour on the other side) and their foot points,
+  //    as offsets in the scaled-index frame (axis a in world units h[a]).
+  std::vector<std::int32_t> band(n, -1);
+  std::vector<std::size_t> per_slice(nz + 1, 0);
+  auto is_band = [&](std::size_t i, std::size_t j, std::size_t k) {
+    const std::size_t c = i + nx * j + nxy * k;
+    const bool b = below(c);
+    if (double(f[c]) == iso) return true;
+    const std::size_t ijk[3] = {i, j, k};
+    for (int a = 0; a < 3; ++a) {
+      const std::size_t na = dims[a];
+      if (ijk[a] > 0 && below(c - stride[a]) != b) return true;
+      if (ijk[a] + 1 < na && below(c + stride[a]) != b) return true;
+    }
+    return false;
+  };
+  tbb::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
+    std::size_t cnt = 0;
+    for (std::size_t j = 0; j < ny; ++j)
+      for (std::size_t i = 0; i < nx; ++i)
+        if (is_band(i, j, k)) {
+          band[i + nx * j + nxy * k] = 0;
+          ++cnt;
+        }
+    per_slice[k + 1] = cnt;
+  });
+  for (std::size_t k = 0; k < nz; ++k) per_slice[k + 1] += per_slice[k];
+  const std::size_t nband = per_slice[nz];
+  if (nband == 0) {
+    if (!p.allow_no_crossing) {
+      float lo = f[0], hi = f[0];
+      for (float v : f) {
+        lo = std::min(lo, v);
+        hi = std::max(hi, v);
+      }
+      std::ostringstream m;
+      m << who << ": no voxels straddle the isovalue " << iso << " (values range from " << lo << " to " << hi
+        << "); expected a level set inside the volume";
+      throw InputError(m.str());
+    }
+    std::vector<float> out(n);
+    for (std::size_t c = 0; c < n; ++c) out[c] = below(c) ? -FLT_MAX : FLT_MAX;
+    return out;
+  }
+  std::vector<std::array<float, 3>> foot(nband);
+  std::vector<std::array<float, 3>> normal(nband, {0.f, 0.f, 0.f});  // unit, or 0: a point
+  std::vector<std::size_t> bnode(nband);
+  tbb::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
+    std::int32_t id = std::int32_t(per_slice[k]);
+    for (std::size_t j = 0; j < ny; ++j)
+      for (std::size_t i = 0; i < nx; ++i) {
+        const std::size_t c = i + nx * j + nxy * k;
+        if (band[c] < 0) continue;
+        band[c] = id;
+        bnode[std::size_t(id)] = c;
+        std::array<float, 3>& off = foot[std::size_t(id)];
+        off = {0.f, 0.f, 0.f};
+        ++id;
+        const double fc = double(f[c]) - iso;
+        if (fc == 0) continue;
+        const bool b = fc < 0;
+        const std::size_t ijk[3] = {i, j, k};
+        double cross[3] = {kInf, kInf, kInf}, inv[3] = {0, 0, 0}, sum = 0, nearest = kInf;
+        for (int a = 0; a < 3; ++a) {
+          for (int s = -1; s <= 1; s += 2) {
+            if (s < 0 && ijk[a] == 0) continue;
+            if (s > 0 && ijk[a] + 1 >= dims[a]) continue;
+            const std::size_t o = s < 0 ? c - stride[a] : c + stride[a];
+            const double fo = double(f[o]) - iso;
+            if ((fo < 0) == b && fo != 0) continue;
+            const double t = fc / (fc - fo);  // in (0, 1]
+            if (t * h[a] < std::fabs(cross[a])) cross[a] = s * t * h[a];
+          }
+          if (cross[a] == kInf) continue;
+          nearest = std::min(nearest, std::fabs(cross[a]));
+          if (cross[a] != 0) {
+            inv[a] = 1.0 / cross[a];
+            sum += inv[a] * inv[a];
+          }
+        }
+        if (nearest == 0 || sum == 0) continue;
+        // Preferred: the plane through the crossing on the axis best aligned
+        // with the central-difference gradient, normal to that gradient (exact
+        // for linear fields). Fallback when the gradient is degenerate or
+        // nearly tangent to every crossing axis (e.g. a one-voxel mask): the
+        // plane through the axis intercepts.
+        double gr[3];
+        for (int a = 0; a < 3; ++a) {
+          const std::size_t lo = ijk[a] > 0 ? c - stride[a] : c;
+          const std::size_t hi = ijk[a] + 1 < dims[a] ? c + stride[a] : c;
+          const double span = double((ijk[a] > 0) + (ijk[a] + 1 < dims[a])) * h[a];
+          gr[a] = span > 0 ? (double(f[hi]) - double(f[lo])) / span : 0.0;
+        }
+        const double gn = std::sqrt(gr[0] * gr[0] + gr[1] * gr[1] + gr[2] * gr[2]);
+        int best_axis = -1;
+        double best_cos = 0.1;
+        if (gn > 0)
+          for (int a = 0; a < 3; ++a)
+            if (cross[a] != kInf && std::fabs(gr[a]) / gn > best_cos) {
+              best_cos = std::fabs(gr[a]) / gn;
+              best_axis = a;
+            }
+        std::array<float, 3>& nrm = normal[std::size_t(band[c])];
+        if (best_axis >= 0) {
+          const double sd = gr[best_axis] / gn * cross[best_axis];  // distance to that plane
+          const double len = std::min(std::fabs(sd), nearest) * (sd < 0 ? -1 : 1);
+          for (int a = 0; a < 3; ++a) {
+            off[std::size_t(a)] = float(len * gr[a] / gn);
+            nrm[std::size_t(a)] = float(gr[a] / gn);
+          }
+        } else {
+          const double in = 1.0 / std::sqrt(sum);
+          for (int a = 0; a < 3; ++a) {
+            off[std::size_t(a)] = float(inv[a] / sum);
+            // A gradient that disagrees with every crossing axis makes the
+            // intercept plane suspect: keep the foot point as a point.
+            nrm[std::size_t(a)] = gn > 0 ? 0.f : float(inv[a] * in);
+          }
+        }
+      }
+  });
+
+  // 2. Exact squared EDT to the band nodes, carrying the nearest node index.
+  std::vector<float> sq(n);
+  std::vector<std::int32_t> site(n);
+  const std::size_t counts[3] = {nx, ny, nz};
+  // Lines along x and y, slice by slice (a slice is contiguous).
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nz), [&](const tbb::blocked_range<std::size_t>& r) {
+    Line L;
+    L.resize(std::max(nx, ny));
+    for (std::size_t k = r.begin(); k != r.end(); ++k) {
+      for (std::size_t j = 0; j < ny; ++j) {
+        const std::size_t base = nx * j + nxy * k;
+        for (std::size_t i = 0; i < nx; ++i) {
+          const bool s = band[base + i] >= 0;
+          L.f[i] = s ? 0.0 : kInf;
+          L.site[i] = s ? std::int32_t(base + i) : -1;
+        }
+        envelope_1d(L, nx, h[0]);
+        std::copy(L.out_f.begin(), L.out_f.begin() + long(nx), sq.begin() + long(base));
+        std::copy(L.out_site.begin(), L.out_site.begin() + long(nx), site.begin() + long(base));
+      }
+      for (std::size_t i = 0; i < nx; ++i) {
+        const std::size_t base = i + nxy * k;
+        for (std::size_t j = 0; j < ny; ++j) {
+          L.f[j] = double(sq[base + nx * j]);
+          L.site[j] = site[base + nx * j];
+        }
+        envelope_1d(L, ny, h[1]);
+        for (std::size_t j = 0; j < ny; ++j) {
+          sq[base + nx * j] = L.out_f[j];
+          site[base + nx * j] = L.out_site[j];
+        }
+      }
+    }
+  });
+  // Lines along z, in blocks of kBlock neighbouring lines so every gather and
+  // scatter touches whole cache lines.
+  constexpr std::size_t kBlock = 16;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, ny), [&](const tbb::blocked_range<std::size_t>& r) {
+    std::vector<Line> lines(kBlock);
+    for (Line& L : lines) L.resize(nz);
+    for (std::size_t j = r.begin(); j != r.end(); ++j)
+      for (std::size_t i0 = 0; i0 < nx; i0 += kBlock) {
+        const std::size_t nb = std::min(kBlock, nx - i0);
+        for (std::size_t k = 0; k < nz; ++k) {
+          const std::size_t base = i0 + nx * j + nxy * k;
+          for (std::size_t b = 0; b < nb; ++b) {
+            lines[b].f[k] = double(sq[base + b]);
+            lines[b].site[k] = site[base + b];
+          }
+        }
+        for (std::size_t b = 0; b < nb; ++b) envelope_1d(lines[b], nz, h[2]);
+        for (std::size_t k = 0; k < nz; ++k) {
+          const std::size_t base = i0 + nx * j + nxy * k;
+          for (std::size_t b = 0; b < nb; ++b) {
+            sq[base + b] = lines[b].out_f[k];
+            site[base + b] = lines[b].out_site[k];
+          }
+        }
+      }
+  });
+
+  // 3. Each band node stands for a small tangent disc of radius rho at its
+  //    foot point (normal from the gradient; a plain point when the normal is
+  //    unknown). Candidate for every node: the nearest disc among those of its
+  //    nearest band node and that node's 26 neighbours. From here on `site`
+  //    holds a band id and `sq` the squared distance to its disc.
+  struct Disc {
+    float p[3], m[3];
+    bool below;  // the band node's side of the level set
+  };
+  std::vector<Disc> disc(nband);
+  tbb::parallel_for(std::size_t(0), nband, [&](std::size_t b) {
+    const std::size_t q = bnode[b];
+    const double qi[3] = {double(q % nx), double((q / nx) % ny), double(q / nxy)};
+    for (int a = 0; a < 3; ++a) {
+      disc[b].p[a] = float(qi[a] * h[a] + double(foot[b][std::size_t(a)]));
+      disc[b].m[a] = normal[b][std::size_t(a)];
+    }
+    disc[b].below = below(q);
+  });
+  std::vector<std::array<float, 3>>().swap(foot);
+  std::vector<std::array<float, 3>>().swap(normal);
+  const double hmax = std::max(h[0], std::max(h[1], h[2]));
+  const double rho = 0.5 * hmax;
+  // Nodes farther than the accurate band (plus a voxel, as sq is measured to
+  // band nodes) skip the neighbourhood search and the propagation.
+  const double far = p.band > 0 ? p.band + 2 * hmax : kInf, far2 = far * far;
+  const float rhof = float(rho);
+  auto disc_d2 = [&](const double x[3], std::int32_t b) {
+    const Disc& D = disc[std::size_t(b)];
+    const float v0 = float(double(D.p[0]) - x[0]), v1 = float(double(D.p[1]) - x[1]),
+                v2 = float(double(D.p[2]) - x[2]);
+    const float vv = v0 * v0 + v1 * v1 + v2 * v2;
+    if (D.m[0] == 0 && D.m[1] == 0 && D.m[2] == 0) return double(vv);
+    const float a = v0 * D.m[0] + v1 * D.m[1] + v2 * D.m[2];
+    const float lat2 = std::max(0.f, vv - a * a);
+    if (lat2 <= rhof * rhof) return double(a * a);
+    const float lat = std::sqrt(lat2) - rhof;
+    return double(a * a + lat * lat);
+  };
+  tbb::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
+    for (std::size_t j = 0; j < ny; ++j)
+      for (std::size_t i = 0; i < nx; ++i) {
+        const std::size_t c = i + nx * j + nxy * k;
+        const double x[3] = {double(i) * h[0], double(j) * h[1], double(k) * h[2]};
+        const std::size_t s = std::size_t(site[c]);
+        std::int32_t arg = band[s];
+        if (double(sq[c]) > far2) {  // beyond the accurate band: the nearest band node's disc
+          sq[c] = float(disc_d2(x, arg));
+          site[c] = -1 - arg;
+          continue;
+        }
+        const bool side = below(c);
+        const std::size_t si = s % nx, sj = (s / nx) % ny, sk = s / nxy;
+        double best = kInf;
+        for (std::size_t kk = sk > 0 ? sk - 1 : 0; kk <= std::min(sk + 1, nz - 1); ++kk)
+          for (std::size_t jj = sj > 0 ? sj - 1 : 0; jj <= std::min(sj + 1, ny - 1); ++jj) {
+            const std::int32_t* row = band.data() + nx * jj + nxy * kk;
+            for (std::size_t ii = si > 0 ? si - 1 : 0; ii <= std::min(si + 1, nx - 1); ++ii) {
+              const std::int32_t b = row[ii];
+              if (b < 0 || disc[std::size_t(b)].below != side) continue;
+              const double d2 = disc_d2(x, b);
+              if (d2 < best) {
+                best = d2;
+                arg = b;
+              }
+            }
+          }
+        site[c] = arg;
+        sq[c] = float(best);
+      }
+  });
+
+  // 4. Closest-point propagation along the axes (forward and backward): a
+  //    node adopts a neighbour's disc when it is nearer. This removes most of
+  //    the error of step 3 where the nearest band node is not the one whose
+  //    disc is nearest (far from a tilted surface).
+  for (int axis = 0; axis < 3; ++axis) {
+    const std::size_t len = counts[axis], st = stride[axis];
+    const int a1 = axis == 0 ? 1 : 0, a2 = axis == 2 ? 1 : 2;
+    tbb::parallel_for(std::size_t(0), counts[a2], [&](std::size_t u2) {
+      for (std::size_t u1 = 0; u1 < counts[a1]; ++u1) {
+        const std::size_t base = u1 * stride[a1] + u2 * stride[a2];
+        double x[3];
+        x[a1] = double(u1) * h[a1];
+        x[a2] = double(u2) * h[a2];
+        auto relax = [&](std::size_t at, std::size_t from) {
+          x[axis] = double(at) * h[axis];
+          const std::size_t c = base + at * st;
+          const std::int32_t b = site[base + from * st];
+          if (b == site[c] || b < 0 || site[c] < 0) return;
+          const double d2 = disc_d2(x, b);
+          if (d2 < double(sq[c])) {
+            sq[c] = float(d2);
+            site[c] = b;
+          }
+        };
+        for (std::size_t t = 1; t < len; ++t) relax(t, t - 1);
+        for (std::size_t t = len - 1; t-- > 0;) relax(t, t + 1);
+      }
+    });
+  }
+
+  std::vector<float> out(n);
+  tbb::parallel_for(std::size_t(0), n, [&](std::size_t c) {
+    const float d = std::sqrt(sq[c]);
+    out[c] = below(c) ? -d : d;
+  });
+  return out;
+}
+
+Volume signed_distance(const Volume& field, const DistanceParams& p) {
+  require_finite(field, "signed_distance: input");
+  const std::vector<float> d = signed_distance(field.to_float(), field.dims(), field.geometry(), p);
+  Volume out(VoxelType::f32, field.dims(), field.geometry());
+  std::copy(d.begin(), d.end(), out.data<float>());
+  return out;
+}
+
+Volume mask_signed_distance(const Volume& mask) {
+  std::vector<float> f(mask.count());
+  std::size_t inside = 0;
+  for (std::size_t c = 0; c < f.size(); ++c) {
+    const bool in = mask.get(c) != 0;
+    inside += in;
+    f[c] = in ? -0.5f : 0.5f;
+  }
+  if (inside == 0 || inside == f.size())
+    throw InputError(std::string("mask_signed_distance: the mask is ") + (inside ? "full" : "empty") + " (" +
+                     std::to_string(inside) + " of " + std::to_string(f.size()) +
+                     " voxels inside); expected both inside and outside voxels");
+  const std::vector<float> d = signed_distance(f, mask.dims(), mask.geometry(), {});
+  Volume out(VoxelType::f32, mask.dims(), mask.geometry());
+  std::copy(d.begin(), d.end(), out.data<float>());
+  return out;
+}
+
+}  // namespace pm

@@ -1,1 +1,325 @@
-// stub: to be implemented
+#include "pm/ops/tighten.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cfloat>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <set>
+#include <sstream>
+
+#include "pm/base/error.h"
+#include "pm/base/stats.h"
+#include "pm/field/distance.h"
+
+namespace pm {
+
+std::vector<std::uint8_t> binary_mask_inside(const Volume& mask, const std::string& what) {
+  const std::size_t n = mask.count();
+  if (n == 0) throw InputError(what + ": the volume has no voxels");
+  const double a = mask.get(0);
+  double b = a;
+  bool two = false;
+  for (std::size_t c = 1; c < n; ++c) {
+    const double v = mask.get(c);
+    if (v == a || (two && v == b)) continue;
+    if (!two) {
+      b = v;
+      two = true;
+      continue;
+    }
+    // A third value: count them all (up to a cap) for the message.
+    constexpr std::size_t kCap = 65536;
+    std::set<double> values;
+    bool nan = false;
+    for (std::size_t d = 0; d < n && values.size() < kCap; ++d) {
+      const double w = mask.get(d);
+      if (std::isnan(w)) nan = true;
+      else values.insert(w);
+    }
+    const std::size_t count = values.size() + (nan ? 1 : 0);
+    std::ostringstream m;
+    m << what << ": expected a binary mask (2 distinct values), got "
+      << (values.size() >= kCap ? "more than " + std::to_string(kCap - 1) : std::to_string(count)) << " values ("
+      << voxel_type_name(mask.type()) << ", range " << *values.begin() << " to " << *values.rbegin() << ")";
+    throw InputError(m.str());
+  }
+  if (!two) {
+    std::ostringstream m;
+    m << what << ": empty mask: every voxel is " << a << "; expected inside and outside voxels (2 distinct values)";
+    throw InputError(m.str());
+  }
+  const double in = std::max(a, b);
+  std::vector<std::uint8_t> inside(n);
+  for (std::size_t c = 0; c < n; ++c) inside[c] = mask.get(c) == in ? 1 : 0;
+  return inside;
+}
+
+namespace {
+
+// One explicit step of level-set mean-curvature flow phi_t = kappa |grad phi|
+// at the active nodes (Jacobi: reads `phi`, writes `next`), clamped between
+// the fillet and round distances. Returns the largest move of a node next to
+// the zero set (a face neighbour across it) within `near` of it.
+double flow_step(const std::vector<std::size_t>& active, const std::vector<float>& phi, std::vector<float>& next,
+                 const std::vector<float>& lo, const std::vector<float>& hi, const Dims& d, const double h[3],
+                 double dt, double near) {
+  const std::size_t sx = 1, sy = d.nx, sz = d.nx * d.ny;
+  const double ix = 1 / h[0], iy = 1 / h[1], iz = 1 / h[2];
+  const std::size_t chunks = std::max<std::size_t>(1, active.size() / 4096 + 1);
+  std::vector<double> moved(chunks, 0.0);
+  tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t ch) {
+    const std::size_t b = active.size() * ch / chunks, e = active.size() * (ch + 1) / chunks;
+    double m = 0;
+    for (std::size_t t = b; t < e; ++t) {
+      const std::size_t c = active[t];
+      const double f = phi[c];
+      const double fxp = phi[c + sx], fxm = phi[c - sx], fyp = phi[c + sy], fym = phi[c - sy];
+      const double fzp = phi[c + sz], fzm = phi[c - sz];
+      const double px = 0.5 * (fxp - fxm) * ix, py = 0.5 * (fyp - fym) * iy, pz = 0.5 * (fzp - fzm) * iz;
+      const double pxx = (fxp - 2 * f + fxm) * ix * ix, pyy = (fyp - 2 * f + fym) * iy * iy,
+                   pzz = (fzp - 2 * f + fzm) * iz * iz;
+      const double pxy = 0.25 * (phi[c + sx + sy] - phi[c + sx - sy] - phi[c - sx + sy] + phi[c - sx - sy]) * ix * iy;
+      const double pxz = 0.25 * (phi[c + sx + sz] - phi[c + sx - sz] - phi[c - sx + sz] + phi[c - sx - sz]) * ix * iz;
+      const double pyz = 0.25 * (phi[c + sy + sz] - phi[c + sy - sz] - phi[c - sy + sz] + phi[c - sy - sz]) * iy * iz;
+      const double gx2 = px * px, gy2 = py * py, gz2 = pz * pz, g2 = gx2 + gy2 + gz2;
+      const double num = pxx * (gy2 + gz2) + pyy * (gx2 + gz2) + pzz * (gx2 + gy2) -
+                         2 * (px * py * pxy + px * pz * pxz + py * pz * pyz);
+      double v = f + dt * num / (g2 + 1e-12);
+      v = std::min(std::max(v, double(lo[c])), double(hi[c]));
+      next[c] = float(v);
+      // Motion of the zero set: only at nodes with a face neighbour across it.
+      const bool neg = f < 0;
+      if (std::fabs(f) < near && ((fxp < 0) != neg || (fxm < 0) != neg || (fyp < 0) != neg || (fym < 0) != neg ||
+                                  (fzp < 0) != neg || (fzm < 0) != neg))
+        m = std::max(m, std::fabs(v - f));
+    }
+    moved[ch] = m;
+  });
+  return *std::max_element(moved.begin(), moved.end());
+}
+
+}  // namespace
+
+TightenResult tighten(const Volume& mask, const TightenParams& p) {
+  if (!(p.radius > 0) || !std::isfinite(p.radius))
+    throw UsageError("tighten: radius " + std::to_string(p.radius) + " is invalid; expected > 0 (world units)");
+  if (p.upsample < 1 || p.upsample > 8)
+    throw UsageError("tighten: upsample " + std::to_string(p.upsample) + " is invalid; expected 1 to 8");
+  if (p.reinit_every < 1) throw UsageError("tighten: reinit_every must be >= 1");
+  if (p.max_iterations < 0) throw UsageError("tighten: iterations must be >= 0 (0 = automatic)");
+  if (!(p.tolerance > 0)) throw UsageError("tighten: tolerance must be > 0 (voxels)");
+
+  TightenResult res;
+  const std::vector<std::uint8_t> inside = binary_mask_inside(mask, "tighten: mask");
+  const Dims& n0 = mask.dims();
+  const Geometry& g0 = mask.geometry();
+  for (int a = 0; a < 3; ++a)
+    for (int b = a + 1; b < 3; ++b) {
+      const Vec3 ca = g0.directions.column(a), cb = g0.directions.column(b);
+      if (!(std::fabs(dot(ca, cb)) < 1e-6 * norm(ca) * norm(cb)))
+        throw InputError("tighten: mask axes " + std::to_string(a) + " and " + std::to_string(b) +
+                         " are not orthogonal; expected an orthogonal direction matrix");
+    }
+  const double r = p.radius;
+
+  // Bounding box of the inside voxels and the padding the closing needs.
+  std::size_t lo[3] = {n0.nx, n0.ny, n0.nz}, hi[3] = {0, 0, 0};
+  for (std::size_t k = 0; k < n0.nz; ++k)
+    for (std::size_t j = 0; j < n0.ny; ++j)
+      for (std::size_t i = 0; i < n0.nx; ++i)
+        if (inside[i + n0.nx * (j + n0.ny * k)]) {
+          res.inside_voxels++;
+          const std::size_t ijk[3] = {i, j, k};
+          for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], ijk[a]);
+            hi[a] = std::max(hi[a], ijk[a]);
+          }
+        }
+  long pad = 0;
+  for (int a = 0; a < 3; ++a) {
+    const long margin = long(std::ceil(r / g0.spacing(a))) + 3;
+    pad = std::max(pad, margin - long(lo[a]));
+    pad = std::max(pad, long(hi[a]) + margin - (long(n0[a]) - 1));
+  }
+  res.pad = std::size_t(std::max(0L, pad));
+  const std::size_t P = res.pad;
+  const Dims pd{n0.nx + 2 * P, n0.ny + 2 * P, n0.nz + 2 * P};
+  Geometry gp = g0;
+  gp.origin = g0.index_to_world(Vec3(-double(P), -double(P), -double(P)));
+
+  // Fine grid (upsampling) and the grey field 0.5 - mask (negative inside).
+  const std::size_t K = std::size_t(p.upsample);
+  const Dims fd{(pd.nx - 1) * K + 1, (pd.ny - 1) * K + 1, (pd.nz - 1) * K + 1};
+  if (double(fd.nx) * double(fd.ny) * double(fd.nz) >= double(std::numeric_limits<std::int32_t>::max())) {
+    std::ostringstream m;
+    m << "tighten: the " << (K > 1 ? "upsampled " : "") << "grid " << fd.nx << "x" << fd.ny << "x" << fd.nz
+      << " exceeds 2^31 nodes; expected a smaller upsampling factor";
+    throw InputError(m.str());
+  }
+  Geometry gf = gp;
+  gf.directions = gp.directions * (1.0 / double(K));
+  auto in_padded = [&](std::size_t i, std::size_t j, std::size_t k) -> double {
+    if (i < P || j < P || k < P) return 0;
+    i -= P;
+    j -= P;
+    k -= P;
+    if (i >= n0.nx || j >= n0.ny || k >= n0.nz) return 0;
+    return inside[i + n0.nx * (j + n0.ny * k)];
+  };
+
+  // Everything but the final re-distancing runs on a working box: the inside
+  // voxels' bounding box plus r and the flowing band, in fine nodes.
+  std::size_t wlo[3], whi[3];
+  for (int a = 0; a < 3; ++a) {
+    const std::size_t m = std::size_t(std::ceil(r / g0.spacing(a))) + 5;
+    wlo[a] = (lo[a] + P > m ? lo[a] + P - m : 0) * K;
+    whi[a] = std::min(hi[a] + P + m, pd[a] - 1) * K;
+  }
+  const Dims wd{whi[0] - wlo[0] + 1, whi[1] - wlo[1] + 1, whi[2] - wlo[2] + 1};
+  Geometry gw = gf;
+  gw.origin = gf.index_to_world(Vec3(double(wlo[0]), double(wlo[1]), double(wlo[2])));
+  const std::size_t N = wd.count();
+  std::vector<float> F(N);
+  tbb::parallel_for(std::size_t(0), wd.nz, [&](std::size_t kw) {
+    const std::size_t k = kw + wlo[2];
+    const std::size_t k0 = k / K, k1 = std::min(k0 + 1, pd.nz - 1);
+    const double tz = double(k % K) / double(K);
+    for (std::size_t jw = 0; jw < wd.ny; ++jw) {
+      const std::size_t j = jw + wlo[1];
+      const std::size_t j0 = j / K, j1 = std::min(j0 + 1, pd.ny - 1);
+      const double ty = double(j % K) / double(K);
+      for (std::size_t iw = 0; iw < wd.nx; ++iw) {
+        const std::size_t i = iw + wlo[0];
+        const std::size_t i0 = i / K, i1 = std::min(i0 + 1, pd.nx - 1);
+        const double tx = double(i % K) / double(K);
+        double m;
+        if (K == 1) {
+          m = in_padded(i, j, k);
+        } else {
+          const double c00 = in_padded(i0, j0, k0) * (1 - tx) + in_padded(i1, j0, k0) * tx;
+          const double c10 = in_padded(i0, j1, k0) * (1 - tx) + in_padded(i1, j1, k0) * tx;
+          const double c01 = in_padded(i0, j0, k1) * (1 - tx) + in_padded(i1, j0, k1) * tx;
+          const double c11 = in_padded(i0, j1, k1) * (1 - tx) + in_padded(i1, j1, k1) * tx;
+          m = (c00 * (1 - ty) + c10 * ty) * (1 - tz) + (c01 * (1 - ty) + c11 * ty) * tz;
+        }
+        F[iw + wd.nx * (jw + wd.ny * kw)] = float(0.5 - m);
+      }
+    }
+  });
+
+  const double h[3] = {gw.spacing(0), gw.spacing(1), gw.spacing(2)};
+  const double hmin = std::min(h[0], std::min(h[1], h[2])), hmax = std::max(h[0], std::max(h[1], h[2]));
+  const double w = 3 * hmax;  // half-width of the flowing band around the mortar
+
+  // Signed distances of S, the round (opening) and the fillet (closing).
+  // Accurate values are needed near the levels -r and +r of dS (they define
+  // the erosion and the dilation) and within w of the mortar.
+  std::optional<ScopedStage> stage(std::in_place, "tighten.mortar");
+  DistanceParams dp;
+  dp.band = std::max(r, w) + hmax;
+  std::vector<float> dS = signed_distance(F, wd, gw, dp);
+  std::vector<float>().swap(F);
+  dp.allow_no_crossing = true;  // the erosion can be empty (everything thinner than 2r)
+  dp.band = w + hmax;
+  dp.iso = -r;
+  std::vector<float> dR = signed_distance(dS, wd, gw, dp);
+  dp.iso = r;
+  std::vector<float> dF = signed_distance(dS, wd, gw, dp);
+  tbb::parallel_for(std::size_t(0), N, [&](std::size_t c) {
+    if (dR[c] < FLT_MAX) dR[c] = std::max(float(dR[c] - r), dS[c]);
+    if (dF[c] > -FLT_MAX) dF[c] = std::min(float(dF[c] + r), dS[c]);
+  });
+
+  // Active nodes: where round and fillet differ near the mortar, off the border.
+  std::vector<std::size_t> active;
+  {
+    std::vector<std::vector<std::size_t>> per(wd.nz);
+    tbb::parallel_for(std::size_t(1), wd.nz - 1, [&](std::size_t k) {
+      for (std::size_t j = 1; j + 1 < wd.ny; ++j)
+        for (std::size_t i = 1; i + 1 < wd.nx; ++i) {
+          const std::size_t c = i + wd.nx * (j + wd.ny * k);
+          if (dF[c] < w && dR[c] > -w && double(dR[c]) - double(dF[c]) > 1e-4 * hmin) per[k].push_back(c);
+        }
+    });
+    for (auto& v : per) active.insert(active.end(), v.begin(), v.end());
+  }
+  res.mortar_nodes = active.size();
+
+  stage.emplace("tighten.flow");
+  // Clamped mean-curvature flow.
+  std::vector<float> phi = dS, next = dS;
+  const double dt = 0.45 / (1 / (h[0] * h[0]) + 1 / (h[1] * h[1]) + 1 / (h[2] * h[2]));
+  const int max_it = p.max_iterations > 0 ? p.max_iterations : int(20 * (r / hmin) * (r / hmin)) + 100;
+  DistanceParams reinit;
+  reinit.band = 2 * w;
+  const std::size_t sy = wd.nx, sz = wd.nx * wd.ny;
+  for (int it = 1; it <= max_it && !active.empty(); ++it) {
+    const double moved = flow_step(active, phi, next, dF, dR, wd, h, dt, 1.5 * hmax);
+    for (std::size_t c : active) phi[c] = next[c];
+    res.iterations = it;
+    res.last_change = moved / hmin;
+    const bool after_reinit = it > 1 && (it - 1) % p.reinit_every == 0;  // the first step relaxes the new field
+    if (res.last_change < p.tolerance && !after_reinit) {
+      res.converged = true;
+      break;
+    }
+    // Re-distancing keeps the field healthy while the zero set moves fast;
+    // near convergence it only perturbs the flow, so it stops there.
+    if (it % p.reinit_every == 0 && res.last_change > 10 * p.tolerance) {
+      // Re-distance away from the zero set; nodes next to it keep their values
+      // so the zero set does not move.
+      std::vector<float> d = signed_distance(phi, wd, gw, reinit);
+      tbb::parallel_for(std::size_t(1), wd.nz - 1, [&](std::size_t k) {
+        for (std::size_t j = 1; j + 1 < wd.ny; ++j)
+          for (std::size_t i = 1; i + 1 < wd.nx; ++i) {
+            const std::size_t c = i + wd.nx * (j + wd.ny * k);
+            const bool neg = phi[c] < 0;
+            if ((phi[c + 1] < 0) != neg || (phi[c - 1] < 0) != neg || (phi[c + sy] < 0) != neg ||
+                (phi[c - sy] < 0) != neg || (phi[c + sz] < 0) != neg || (phi[c - sz] < 0) != neg)
+              d[c] = phi[c];
+          }
+      });
+      phi.swap(d);
+      for (std::size_t c : active) phi[c] = std::min(std::max(phi[c], dF[c]), dR[c]);
+    }
+  }
+  if (active.empty()) res.converged = true;
+
+  stage.emplace("tighten.redistance");
+  // The whole grid: outside the working box every node is outside.
+  std::vector<float> full(fd.count(), FLT_MAX / 4);
+  tbb::parallel_for(std::size_t(0), wd.nz, [&](std::size_t kw) {
+    for (std::size_t jw = 0; jw < wd.ny; ++jw)
+      std::copy_n(phi.begin() + long(wd.nx * (jw + wd.ny * kw)), wd.nx,
+                  full.begin() + long(wlo[0] + fd.nx * (jw + wlo[1] + fd.ny * (kw + wlo[2]))));
+  });
+  std::vector<float>().swap(phi);
+  std::vector<float>().swap(next);
+  const std::vector<float> d = signed_distance(full, fd, gf, {});
+  res.distance = Volume(VoxelType::f32, fd, gf);
+  float* out = res.distance.data<float>();
+  const float sign = p.positive_inside ? -1.f : 1.f;
+  for (std::size_t c = 0; c < d.size(); ++c) out[c] = sign * d[c];
+  if (p.keep_mortar) {
+    res.round = Volume(VoxelType::f32, fd, gf);
+    res.fillet = Volume(VoxelType::f32, fd, gf);
+    float* R = res.round.data<float>();
+    float* Fi = res.fillet.data<float>();
+    std::fill(R, R + fd.count(), FLT_MAX);
+    std::fill(Fi, Fi + fd.count(), FLT_MAX);
+    for (std::size_t kw = 0; kw < wd.nz; ++kw)
+      for (std::size_t jw = 0; jw < wd.ny; ++jw)
+        for (std::size_t iw = 0; iw < wd.nx; ++iw) {
+          const std::size_t c = iw + wlo[0] + fd.nx * (jw + wlo[1] + fd.ny * (kw + wlo[2]));
+          R[c] = dR[iw + wd.nx * (jw + wd.ny * kw)];
+          Fi[c] = dF[iw + wd.nx * (jw + wd.ny * kw)];
+        }
+  }
+  return res;
+}
+
+}  // namespace pm

@@ -1,0 +1,56 @@
+#pragma once
+// Signed Euclidean distance transforms (SPEC §1): of a grey-level volume at an
+// isovalue, and of a binary mask. Distances are in world units, negative
+// inside (F < iso), honouring anisotropic spacing.
+//
+// Method: every node next to the level set (a face neighbour on the other
+// side) gets a sub-voxel foot point and normal: the plane normal to its
+// central-difference gradient through the linear crossing on its best-aligned
+// grid edge (exact for linear fields), or the plane through its axis
+// intercepts where the gradient is degenerate (masks). An exact separable
+// squared Euclidean distance transform (Felzenszwalb–Huttenlocher, world
+// units) finds every node's nearest such node; the distance is then taken to
+// small tangent discs (radius half the largest spacing) at the foot points of
+// that node and its 26 neighbours, refined by a closest-disc propagation
+// along the axes. Measured on analytic spheres (radius >= 6 voxels): mean
+// error < 0.02 voxel, max < 0.12 voxel (largest at the medial axis);
+// linear fields are exact. Deterministic; TBB-parallel.
+
+#include <vector>
+
+#include "pm/base/volume.h"
+
+namespace pm {
+
+struct DistanceParams {
+  double iso = 0;  ///< level set F = iso, in the volume's value units
+  /// When no voxel pair straddles iso: false = throw InputError; true = return
+  /// +FLT_MAX where F >= iso and -FLT_MAX where F < iso.
+  bool allow_no_crossing = false;
+  /// > 0: only nodes within this distance (world units) get the accurate
+  /// value; farther ones keep a cheaper estimate that is correctly signed and
+  /// within about a voxel (saves most of the time on large grids).
+  /// 0 = accurate everywhere.
+  double band = 0;
+};
+
+/// Signed distance (float volume, world units, same dims and geometry) to the
+/// level set F = iso of `field`, negative where F < iso. Nodes with F == iso
+/// get 0. The direction matrix must have orthogonal columns (any spacing).
+/// \throw InputError for NaN/Inf voxels, non-orthogonal axes, or (unless
+/// allowed) no crossing of iso; the message names the iso and the value range.
+Volume signed_distance(const Volume& field, const DistanceParams& p = {});
+
+/// Signed distance of a binary mask: voxels != 0 are inside (negative). The
+/// surface lies halfway between inside and outside nodes along the grid axes
+/// (the level 0.5 of the mask's linear interpolation), so a one-voxel mask has
+/// distance -h/2 at its node. \throw InputError for an empty or full mask or
+/// non-orthogonal axes.
+Volume mask_signed_distance(const Volume& mask);
+
+/// The same on raw values: `f` holds dims.count() values (axis 0 fastest);
+/// returns dims.count() signed distances, world units.
+std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims, const Geometry& g,
+                                   const DistanceParams& p = {});
+
+}  // namespace pm

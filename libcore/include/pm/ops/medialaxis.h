@@ -1,0 +1,62 @@
+#pragma once
+// Medial axis (MA) points of a surface given by its signed distance volume,
+// by the foot-point method of dissertation §5.3.1 (SPEC §5).
+// Foot points (closest surface points) of all grid nodes first: where the
+// grid gradients of a node and its six neighbours agree, p = q - d(q) g/|g|
+// (g: central differences); elsewhere (near the MA, near the surface, at
+// high curvature) p is found on the reconstructed field (value Catmull-Rom,
+// derivatives cubic B-spline) by Newton steps for "q - p normal to the
+// surface at p", started from the node's smoothed gradient and from its
+// neighbours' grid gradients, keeping the closest foot point; nodes where
+// that fails take the closest of their neighbours' feet.
+// Then the test at node q: step along its characteristic u = (q - p)/|q - p|
+// to the far face of q's voxel (the box of half-spacings around q), q'. The
+// foot point p' of q' is the closest of the feet of the corners of q''s cell,
+// and its characteristic u' the surface normal there. If u·u' < cos alpha,
+// the segment q q' crosses the MA, where the tangent planes at p and p' are
+// equidistant (first order); that point and its distance to the surface are
+// kept. Both the inner MA (d < 0) and the outer MA (d > 0) are found.
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "pm/base/volume.h"
+#include "pm/io/mesh.h"
+
+namespace pm {
+
+struct MedialAxisParams {
+  double cos_alpha = 0.9;  ///< cos of the smallest turn of the characteristic that marks the MA, in (-1, 1)
+  int foot_iterations = 3; ///< most Newton refinements of each foot point (>= 0)
+  bool inside = true;      ///< find the inner MA (where d < 0)
+  bool outside = true;     ///< find the outer MA (where d > 0)
+};
+
+struct MedialAxisResult {
+  /// MA points, world units, in slice-major grid order (deterministic), with
+  /// vertex scalar "distance": distance to the surface, world units (>= 0).
+  Mesh points;
+  std::size_t nodes_refined = 0;  ///< nodes whose foot point needed the reconstructed field
+  std::size_t inner = 0, outer = 0;  ///< points on the inner / outer MA
+};
+
+/// Check that `v` looks like a signed distance volume: a float type and more
+/// than two distinct values, with a zero crossing (values of both signs).
+/// \throw InputError naming `what`: "expected a signed distance volume
+/// (float), got a uint8 mask", "... got a float volume with only 2 values",
+/// "no zero crossing (values from 0.5 to 12)".
+void require_distance_volume(const Volume& v, const std::string& what);
+
+/// MA points of the zero level set of a signed distance volume (negative
+/// inside, world units; any orthogonal-axes geometry). Nodes where the
+/// reconstructed gradient is shorter than 0.5 (not a distance field, e.g.
+/// clamped beyond a narrow band) are skipped.
+/// \throw UsageError for cos_alpha outside (-1, 1) or foot_iterations < 0;
+/// InputError as require_distance_volume.
+MedialAxisResult medial_axis(const Volume& sdf, const MedialAxisParams& p = {});
+
+/// uint8 volume on the grid of `like` with 1 at the node nearest to each
+/// point inside the grid, 0 elsewhere.
+Volume mark_points(const Volume& like, const std::vector<Vec3>& points);
+
+}  // namespace pm

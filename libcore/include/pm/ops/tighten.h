@@ -1,0 +1,79 @@
+#pragma once
+// Tightening of a binary mask (Williams & Rossignac 2005; dissertation §2.5.2,
+// §6.6.1; SPEC §2): with a ball of radius r,
+//   round  = opening(S, r)   (union of the balls of radius r inside S),
+//   fillet = closing(S, r)   (complement of the opening of the complement),
+//   mortar = fillet \ round.
+// The tightened surface stays inside the mortar and has radius of curvature
+// >= r in practice. It is computed as a level-set mean-curvature flow of the
+// signed distance of S, clamped after every step between the signed
+// distances of the fillet and the round, re-distanced periodically, until
+// the zero set stops moving. S is the mask's voxels as a solid whose surface
+// lies halfway between inside and outside nodes (the level 0.5 of the mask's
+// trilinear interpolation); round and fillet are Euclidean (by distance
+// transforms: round = {x : dist(x, {d_S <= -r}) <= r}, and dually).
+//
+// Sign convention: the output is a signed distance volume, world units,
+// NEGATIVE inside (like every distance field here and F < iso for particles).
+// Chapter 6's indicator functions want positive = material: set
+// `positive_inside` to negate the output.
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "pm/base/volume.h"
+
+namespace pm {
+
+struct TightenParams {
+  double radius = 1;  ///< r, world units (> 0)
+  /// K >= 1: resample the mask to K times the resolution first (trilinear
+  /// interpolation of the 0/1 mask, level 0.5), for r below a voxel or so.
+  /// The output grid has spacing h/K and (n-1)K+1 nodes per axis.
+  int upsample = 1;
+  /// Flow steps; 0 = automatic: until converged, at most 20 (r/h)² + 100.
+  int max_iterations = 0;
+  /// Converged when no node next to the zero set moves more than
+  /// tolerance · h in a step (voxels).
+  double tolerance = 1e-3;
+  /// Re-distance the flowing field every N steps (>= 1), while the zero set
+  /// still moves more than 10 · tolerance a step (later it only perturbs it).
+  int reinit_every = 25;
+  bool positive_inside = false;  ///< negate the output (Chapter 6 indicators)
+  bool keep_mortar = false;      ///< also return the round and fillet distances
+};
+
+struct TightenResult {
+  /// float32 signed distance to the tightened surface, world units, negative
+  /// inside (positive with positive_inside). Its grid is the input's, padded
+  /// (see `pad`) and upsampled; the geometry says where it lies.
+  Volume distance;
+  /// With keep_mortar: signed distances of the round and the fillet on the
+  /// same grid, negative inside whatever positive_inside says; the mortar is
+  /// {round >= 0 and fillet <= 0}. Accurate within a few voxels of the
+  /// mortar; FLT_MAX far outside the mask's bounding box.
+  Volume round, fillet;
+  std::size_t pad = 0;          ///< voxels of the input grid added on every side (0 = none)
+  int iterations = 0;           ///< flow steps taken
+  bool converged = false;
+  double last_change = 0;       ///< largest move of the last step, voxels
+  std::size_t mortar_nodes = 0; ///< nodes where the round and fillet differ (the flow runs there)
+  std::size_t inside_voxels = 0;  ///< inside voxels of the input mask
+};
+
+/// Inside flags (1/0) of a binary mask: exactly two distinct voxel values, the
+/// larger one is inside. \throw InputError naming `what` for one value
+/// ("empty mask") or more than two ("expected a binary mask (2 distinct
+/// values), got 187 values").
+std::vector<std::uint8_t> binary_mask_inside(const Volume& mask, const std::string& what = "mask");
+
+/// Tighten a binary mask. If the mask comes within r + 3 voxels of the volume
+/// border, the grid is padded with outside voxels (result.pad > 0; the
+/// geometry's origin moves accordingly) so the closing is not clipped.
+/// \throw UsageError for radius <= 0, upsample < 1 or > 8, reinit_every < 1;
+/// InputError for a mask that is not binary, an empty mask, non-orthogonal
+/// axes, or a grid that would exceed 2^31 nodes.
+TightenResult tighten(const Volume& mask, const TightenParams& p);
+
+}  // namespace pm

@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# End-to-end tighten checks on the 12^3 box mask fixture (spacing 0.5, box of
+# 6^3 voxels 3 voxels from the border): padding, geometry, sign conventions,
+# upsampling, and a failed run leaving nothing behind.
+set -euo pipefail
+BIN=$1; SRC=$2
+T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
+TI="$BIN/tighten"; VC="$BIN/volconv"; D="$SRC/tests/data"
+
+# 1. r = 0.5 (one voxel): the box is 3 voxels from the border, r + 3 voxels are
+#    needed, so the grid grows by one voxel a side; the centre is 1.5 deep.
+"$TI" "$D/box_mask.nrrd" "$T/a.nrrd" --radius 0.5 --stats "$T/a.json" 2> "$T/a.err"
+grep -q "padded by 1 voxels" "$T/a.err"
+"$VC" --info "$T/a.nrrd" > "$T/ai.json"
+"$TI" "$D/box_mask.nrrd" "$T/p.nrrd" --radius 0.5 --positive-inside -q
+"$VC" --info "$T/p.nrrd" > "$T/pi.json"
+"$TI" "$D/box_mask.nrrd" "$T/u.nrrd" --radius 0.5 --upsample 2 -q
+"$VC" --info "$T/u.nrrd" > "$T/ui.json"
+python3 - "$T/a.json" "$T/ai.json" "$T/pi.json" "$T/ui.json" <<'PY'
+import json, sys
+st, a, p, u = (json.load(open(f)) for f in sys.argv[1:5])
+c = st["counts"]
+assert c["pad"] == 1 and c["converged"] and c["inside_voxels"] == 216, c
+assert a["type"] == "float" and a["dims"] == [14, 14, 14], a
+assert all(abs(s - 0.5) < 1e-9 for s in a["spacing"]), a["spacing"]
+assert all(abs(o + 0.5) < 1e-9 for o in a["origin"]), a["origin"]   # moved out by one voxel
+assert abs(a["min"] + 1.25) < 0.02 and a["max"] > 2.0, (a["min"], a["max"])  # nodes nearest the centre: 2.5 voxels deep
+assert abs(p["min"] + a["max"]) < 1e-6 and abs(p["max"] + a["min"]) < 1e-6, (p, a)  # exactly negated
+assert u["dims"] == [27, 27, 27] and all(abs(s - 0.25) < 1e-9 for s in u["spacing"]), u
+assert abs(u["min"] + 1.5) < 0.05, u["min"]  # the fine grid has a node at the centre
+PY
+
+# 2. Deterministic: one thread or two give the same bytes.
+"$TI" "$D/box_mask.nrrd" "$T/t1.nrrd" --radius 0.5 --threads 1 -q
+"$TI" "$D/box_mask.nrrd" "$T/t2.nrrd" --radius 0.5 --threads 2 -q
+cmp "$T/t1.nrrd" "$T/t2.nrrd"
+
+# 3. A failed run leaves no output and no temporary file.
+mkdir "$T/fail"
+if "$TI" "$D/grey_ramp.nrrd" "$T/fail/out.nrrd" --radius 1 2>/dev/null; then echo "grey input accepted"; exit 1; fi
+if "$TI" "$D/box_mask.nrrd" "$T/fail/out.nrrd" --radius 0 2>/dev/null; then echo "radius 0 accepted"; exit 1; fi
+[ -z "$(ls -A "$T/fail")" ] || { echo "left behind: $(ls -A "$T/fail")"; exit 1; }
+echo "tighten workflow: ok"
