@@ -72,11 +72,13 @@ int main(int argc, char** argv) {
   tool.app.add_option("--band", sp.band, "With --sdf: narrow band half-width in voxels; 0 = exact distance in the "
                                          "whole box")->capture_default_str();
   tool.app.add_option("--padding", sp.padding, "With --sdf: voxels of margin around the mesh")->capture_default_str();
+  auto* thr = tool.app.add_option("--threshold", distance_iso,
+                                  "Write a uint8 mask (1 = material) of the side of F = ISO given by --inside");
   auto* dist = tool.app.add_option("--distance", distance_iso,
                                    "Write the signed distance (world units, negative inside) to the level set "
                                    "F = ISO of the input volume (grey values, masks: 0.5)");
   tool.app.add_option("--inside", inside,
-                      "With --distance: the material is below ISO (distance fields), above (masks, CT) or auto "
+                      "With --distance/--threshold: the material is below ISO (distance fields), above (masks, CT) or auto "
                       "(the side the volume's corners are not on)")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "below", "above"}));
@@ -119,6 +121,23 @@ int main(int argc, char** argv) {
         v = pm::merge_labels(v, rules);
       }
       if (!labels.empty()) v = pm::label_mask(v, pm::parse_label_list(labels), pm::quote(in));
+      if (thr->count() > 0 && dist->count() > 0) throw pm::UsageError("give only one of --threshold and --distance");
+      if (thr->count() > 0) {
+        bool below = inside == "below";
+        if (inside == "auto") below = pm::material_below_iso(pm::VolumeField(v, {}, in), distance_iso);
+        pm::Volume m(pm::VoxelType::u8, v.dims(), v.geometry());
+        std::size_t n = 0;
+        for (std::size_t i = 0; i < v.count(); ++i) {
+          const bool on = below ? v.get(i) < distance_iso : v.get(i) > distance_iso;
+          m.set(i, on ? 1.0 : 0.0);
+          n += on;
+        }
+        if (n == 0 || n == v.count())
+          throw pm::InputError(pm::quote(in) + ": no surface: every voxel is on one side of " +
+                               std::to_string(distance_iso) + "; expected an isovalue inside the value range");
+        v = std::move(m);
+        st["parameters"] = {{"threshold", distance_iso}, {"inside", below ? "below" : "above"}};
+      }
       if (dist->count() > 0) {
         pm::ScopedStage stage("distance");
         bool below = inside == "below";
