@@ -1,0 +1,245 @@
+#include "pm/field/materials.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "pm/base/error.h"
+#include "pm/field/distance.h"
+#include "pm/field/volume_field.h"
+#include "pm/io/volume_io.h"
+
+namespace pm {
+namespace {
+
+/// -F: turns a field positive inside into one negative inside.
+class NegatedField : public ScalarField {
+ public:
+  explicit NegatedField(std::unique_ptr<ScalarField> f) : f_(std::move(f)) {}
+  double value(const Vec3& x) const override { return -f_->value(x); }
+  double value_gradient(const Vec3& x, Vec3& g) const override {
+    const double v = f_->value_gradient(x, g);
+    g = -g;
+    return -v;
+  }
+  double evaluate(const Vec3& x, Vec3& g, Mat3& h) const override {
+    const double v = f_->evaluate(x, g, h);
+    g = -g;
+    for (auto& row : h.m)
+      for (double& e : row) e = -e;
+    return -v;
+  }
+  Box domain() const override { return f_->domain(); }
+  double resolution() const override { return f_->resolution(); }
+  std::string describe() const override { return "-(" + f_->describe() + ")"; }
+
+ private:
+  std::unique_ptr<ScalarField> f_;
+};
+
+std::string trim(const std::string& s) {
+  const auto a = s.find_first_not_of(" \t");
+  if (a == std::string::npos) return {};
+  const auto b = s.find_last_not_of(" \t");
+  return s.substr(a, b - a + 1);
+}
+
+int parse_label(const std::string& tok, const std::string& entry) {
+  std::size_t pos = 0;
+  long long v = 0;
+  try {
+    v = std::stoll(tok, &pos);
+  } catch (const std::exception&) {
+    pos = 0;
+  }
+  if (tok.empty() || pos != tok.size() || v < std::numeric_limits<int>::min() || v > std::numeric_limits<int>::max())
+    throw UsageError("materials: entry \"" + entry + "\": label \"" + tok +
+                     "\" is not an integer; expected \"LABEL=path\", e.g. \"1=skin_sdf.nrrd\"");
+  return int(v);
+}
+
+std::string describe_geometry(const Volume& v) {
+  std::ostringstream s;
+  const Geometry& g = v.geometry();
+  s << v.dims().nx << "x" << v.dims().ny << "x" << v.dims().nz << " voxels, spacing " << g.spacing(0) << ","
+    << g.spacing(1) << "," << g.spacing(2) << ", origin " << g.origin.x << "," << g.origin.y << "," << g.origin.z;
+  return s.str();
+}
+
+bool same_geometry(const Volume& a, const Volume& b) {
+  if (!(a.dims() == b.dims())) return false;
+  const Geometry &ga = a.geometry(), &gb = b.geometry();
+  double scale = 0;
+  for (int c = 0; c < 3; ++c) scale = std::max(scale, ga.spacing(c));
+  const double tol = 1e-5 * scale;
+  for (int i = 0; i < 3; ++i) {
+    if (std::fabs(ga.origin[i] - gb.origin[i]) > tol) return false;
+    for (int j = 0; j < 3; ++j)
+      if (std::fabs(ga.directions.m[i][j] - gb.directions.m[i][j]) > tol) return false;
+  }
+  return true;
+}
+
+VolumeFieldParams kernel_params(Kernel k) { return {k, k}; }
+
+}  // namespace
+
+void MaterialSet::indicators(const Vec3& p, double* out) const {
+  for (std::size_t i = 0; i < fields.size(); ++i) out[i] = -fields[i]->value(p);
+}
+
+std::size_t MaterialSet::argmax(const Vec3& p) const {
+  std::size_t best = 0;
+  double best_f = -std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < fields.size(); ++i) {
+    const double f = -fields[i]->value(p);
+    if (f > best_f) {  // strict: ties keep the smallest index
+      best_f = f;
+      best = i;
+    }
+  }
+  return best;
+}
+
+std::size_t MaterialSet::index_of(int label) const {
+  for (std::size_t i = 0; i < labels.size(); ++i)
+    if (labels[i] == label) return i;
+  return labels.size();
+}
+
+Box MaterialSet::domain() const {
+  Box b;
+  for (std::size_t i = 0; i < fields.size(); ++i) {
+    const Box d = fields[i]->domain();
+    if (i == 0) {
+      b = d;
+      continue;
+    }
+    for (int a = 0; a < 3; ++a) {
+      b.lo[a] = std::max(b.lo[a], d.lo[a]);
+      b.hi[a] = std::min(b.hi[a], d.hi[a]);
+    }
+  }
+  return b;
+}
+
+double MaterialSet::resolution() const {
+  double r = std::numeric_limits<double>::infinity();
+  for (const auto& f : fields) r = std::min(r, f->resolution());
+  return r;
+}
+
+MaterialSet materials_from_labels(const Volume& lv, Kernel kernel, const std::string& what) {
+  // Distinct labels (checking integrality on the way).
+  std::map<long long, std::size_t> counts;
+  std::vector<int> lab(lv.count());
+  for (std::size_t c = 0; c < lv.count(); ++c) {
+    const double v = lv.get(c);
+    if (!std::isfinite(v) || v != std::floor(v) || std::fabs(v) > double(std::numeric_limits<int>::max())) {
+      const Dims& d = lv.dims();
+      std::ostringstream m;
+      m << "materials: " << what << ": voxel (" << c % d.nx << "," << (c / d.nx) % d.ny << "," << c / (d.nx * d.ny)
+        << ") is " << v << "; expected a label map with integer values (for indicator or distance volumes use "
+        << "\"L1=a.nrrd,L2=b.nrrd,...\")";
+      throw InputError(m.str());
+    }
+    lab[c] = int(v);
+    auto it = counts.find((long long)v);
+    if (it != counts.end()) {
+      ++it->second;
+    } else {
+      counts.emplace((long long)v, 1);
+      if (counts.size() > kMaxMaterials)
+        throw InputError("materials: " + what + ": more than " + std::to_string(kMaxMaterials) +
+                         " distinct labels; expected a label map with at most " + std::to_string(kMaxMaterials) +
+                         " materials (group labels with volconv --merge, drop small ones with --min-voxels)");
+    }
+  }
+  if (counts.size() < 2)
+    throw InputError("materials: " + what + ": only " + std::to_string(counts.size()) + " label (" +
+                     (counts.empty() ? std::string("none") : std::to_string(counts.begin()->first)) +
+                     "); expected at least 2 materials");
+  MaterialSet ms;
+  Volume mask(VoxelType::u8, lv.dims(), lv.geometry());
+  std::uint8_t* m = mask.data<std::uint8_t>();
+  for (const auto& [label, n] : counts) {
+    (void)n;
+    for (std::size_t c = 0; c < lv.count(); ++c) m[c] = lab[c] == label ? 1 : 0;
+    const Volume d = mask_signed_distance(mask);
+    ms.labels.push_back(int(label));
+    ms.fields.push_back(std::make_shared<VolumeField>(d, kernel_params(kernel),
+                                                      what + " label " + std::to_string(label)));
+  }
+  return ms;
+}
+
+MaterialSet load_materials(const std::string& spec_in, Kernel kernel) {
+  const std::string spec = trim(spec_in);
+  if (spec.empty())
+    throw UsageError("materials: empty spec; expected a label map path or \"L1=path1,L2=path2,...\"");
+  if (spec.find('=') == std::string::npos) {
+    if (spec.find(',') != std::string::npos)
+      throw UsageError("materials: \"" + spec +
+                       "\" lists files without labels; expected a label map path or \"L1=path1,L2=path2,...\"");
+    const Volume lv = read_volume(spec);
+    return materials_from_labels(lv, kernel, quote(spec));
+  }
+  // L=path list.
+  std::vector<std::string> entries;
+  {
+    std::string cur;
+    for (char c : spec) {
+      if (c == ',') {
+        entries.push_back(trim(cur));
+        cur.clear();
+      } else {
+        cur += c;
+      }
+    }
+    entries.push_back(trim(cur));
+  }
+  MaterialSet ms;
+  std::vector<std::pair<std::string, Volume>> first;  // the first volume, for geometry checks
+  std::set<int> seen;
+  for (const std::string& e : entries) {
+    const auto eq = e.find('=');
+    if (e.empty() || eq == std::string::npos || eq + 1 >= e.size())
+      throw UsageError("materials: entry \"" + e + "\" is malformed; expected \"LABEL=path\" or \"LABEL=+path\"");
+    const int label = parse_label(trim(e.substr(0, eq)), e);
+    std::string path = trim(e.substr(eq + 1));
+    bool positive = false;
+    if (!path.empty() && path[0] == '+') {
+      positive = true;
+      path = trim(path.substr(1));
+    }
+    if (path.empty())
+      throw UsageError("materials: entry \"" + e + "\" has no path; expected \"LABEL=path\"");
+    if (!seen.insert(label).second)
+      throw InputError("materials: label " + std::to_string(label) + " is given twice (\"" + e +
+                       "\"); expected each label once");
+    Volume v = read_volume(path);
+    require_finite(v, quote(path));
+    if (first.empty()) {
+      first.emplace_back(path, Volume(VoxelType::u8, v.dims(), v.geometry()));
+    } else if (!same_geometry(first[0].second, v)) {
+      throw InputError("materials: " + quote(path) + " (" + describe_geometry(v) + ") does not match " +
+                       quote(first[0].first) + " (" + describe_geometry(first[0].second) +
+                       "); expected every material volume on the same grid");
+    }
+    auto vf = std::make_unique<VolumeField>(v, kernel_params(kernel), path);
+    ms.labels.push_back(label);
+    if (positive)
+      ms.fields.push_back(std::make_shared<NegatedField>(std::move(vf)));
+    else
+      ms.fields.push_back(std::shared_ptr<const ScalarField>(std::move(vf)));
+  }
+  if (ms.size() < 2)
+    throw InputError("materials: \"" + spec + "\" names " + std::to_string(ms.size()) +
+                     " material; expected at least 2");
+  return ms;
+}
+
+}  // namespace pm
