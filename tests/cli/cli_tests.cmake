@@ -168,3 +168,11 @@ pm_cli_test(meshstats.no_faces "meshstats: error: .*sphere_points.ply.*no faces;
 pm_cli_test(meshstats.bad_requirement "meshstats: usage error: requirement \"frob\" is unknown" ${MS} ${D}/tet.off --require frob)
 pm_cli_test(meshstats.check_fails "meshstats: check failed: .*tet.off.*rr_min>=0.99" ${MS} ${D}/tet.off --require rr_min>=0.99)
 pm_cli_script(mesh.workflow mesh_test.sh)
+# == bad-input matrix (issue 7): every tool x missing/empty/truncated/2-D/wrong-type/NaN/no-surface
+#    inputs, unwritable outputs, out-of-range options; SIGINT/SIGTERM mid-run leaves nothing
+add_test(NAME cli.bad_input_matrix COMMAND python3 ${CMAKE_SOURCE_DIR}/tests/cli/bad_input_matrix.py
+  $<TARGET_FILE_DIR:volconv> ${CMAKE_SOURCE_DIR})
+set_tests_properties(cli.bad_input_matrix PROPERTIES LABELS cli TIMEOUT 300)
+# == multiparticles (Chapter 6 junction sampling)
+pm_cli_script(multiparticles.wedges multiparticles_test.sh)
+pm_cli_test(multiparticles.help_example "Example:.*multiparticles --materials" $<TARGET_FILE:multiparticles> --help)

@@ -37,6 +37,7 @@ int main(int argc, char** argv) {
     auto& st = pm::stats();
     if (out.size() < 4 || out.substr(out.size() - 4) != ".ply")
       throw pm::UsageError("output " + pm::quote(out) + ": expected a .ply file");
+    if (p.decimate < 1) throw pm::UsageError("--decimate " + std::to_string(p.decimate) + "; expected >= 1");
     if (kernel == "bspline")
       p.field = {};
     else if (kernel == "catmull-rom")

@@ -75,6 +75,8 @@ int main(int argc, char** argv) {
                            ".mhd .nii .nii.gz .inr .inr.gz");
     if (!op.empty() && !ops.empty()) throw pm::UsageError("give either --op or --ops, not both");
     if (iterations < 1) throw pm::UsageError("--iterations " + std::to_string(iterations) + "; expected >= 1");
+    if (p.downsample < 1)
+      throw pm::UsageError("--downsample " + std::to_string(p.downsample) + "; expected an integer >= 1");
     if (!op.empty()) p.steps = {pm::MorphStep{pm::parse_morph_op(op), pm::parse_stencil(stencil), iterations}};
     if (!ops.empty()) parse_ops(ops, p);
     if (!labels.empty()) p.labels = pm::parse_label_list(labels);

@@ -50,6 +50,10 @@ int main(int argc, char** argv) {
 
     const pm::Mesh m = pm::read_mesh(in);
     if (m.vertices.empty()) throw pm::InputError(pm::quote(in) + ": no vertices; expected a point set or mesh");
+    for (std::size_t k = 0; k < m.vertices.size(); ++k)
+      if (!pm::is_finite(m.vertices[k]))
+        throw pm::InputError(pm::quote(in) + ": vertex " + std::to_string(k) + " is not finite; expected finite "
+                             "coordinates");
     if (!p.color_by.empty() && !m.vertex_scalars.count(p.color_by) && !m.face_ints.count(p.color_by)) {
       std::string avail;
       for (const auto& kv : m.vertex_scalars) avail += (avail.empty() ? "" : ", ") + kv.first;

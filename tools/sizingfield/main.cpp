@@ -1,5 +1,6 @@
 // sizingfield: initial sizing field h0 = 2ε min(LFS, 1/|κmax|) / g near the
 // surface (§5.3.2), from signed distance volumes and their medial axes.
+#include <sstream>
 #include <vector>
 
 #include "pm/base/error.h"
@@ -10,6 +11,15 @@
 #include "pm/io/volume_io.h"
 #include "pm/ops/medialaxis.h"
 #include "pm/ops/sizingfield.h"
+
+namespace {
+// A number as a user typed it (no trailing zeros), for messages.
+std::string num(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+}  // namespace
 
 int main(int argc, char** argv) {
   pm::Tool tool("sizingfield",
@@ -43,6 +53,10 @@ int main(int argc, char** argv) {
   return tool.run(argc, argv, [&] {
     auto& st = pm::stats();
     p.contract = !no_contract;
+    if (!(p.eps > 0)) throw pm::UsageError("--eps " + num(p.eps) + "; expected > 0");
+    if (!(p.hmin >= 0)) throw pm::UsageError("--hmin " + num(p.hmin) + "; expected >= 0 (world units)");
+    if (!(p.band > 0)) throw pm::UsageError("--band " + num(p.band) + "; expected > 0 voxels");
+    if (!(p.contraction >= 1)) throw pm::UsageError("--contraction " + num(p.contraction) + "; expected >= 1");
     p.at_foot_point = !at_node;
     st["inputs"] = {{"sdf", sdfs}, {"ma", mas}};
     st["parameters"] = {{"eps", p.eps},           {"hmin", p.hmin},  {"band", p.band},

@@ -46,7 +46,7 @@ Tool::Tool(std::string name, std::string description, std::string example)
   app.add_flag("-v,--verbose", flags.verbose, "Print stage timings and details on stderr");
   app.add_flag("-q,--quiet", flags.quiet, "Print nothing but errors");
   app.add_option("--stats", flags.stats_path, "Write run statistics as one JSON object to FILE ('-' = stdout)");
-  app.add_option("--threads", flags.threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
+  app.add_option("--threads", flags.threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 4096));
   app.add_option("--seed", flags.seed, "Random seed; same seed and threads give identical output")
       ->capture_default_str();
   app.set_version_flag("--version", std::string(name_) + " (particlemesh) " + PM_VERSION);
@@ -61,8 +61,8 @@ int Tool::run(int argc, char** argv, const std::function<void()>& body) {
   } catch (const CLI::Success& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
-    std::cerr << name_ << ": usage error: " << e.what() << "\n"
-              << "Run with --help for more information.\n";
+    // One line, like every other error: the message, then where to look.
+    std::cerr << name_ << ": usage error: " << e.what() << " (run " << name_ << " --help for the options)\n";
     return kExitUsage;
   }
   set_verbosity(flags.quiet ? Verbosity::quiet : (flags.verbose ? Verbosity::verbose : Verbosity::normal));

@@ -1,0 +1,265 @@
+#!/usr/bin/env python3
+"""The bad-input matrix (issue 7): every tool against every kind of bad input.
+
+usage: bad_input_matrix.py BIN_DIR SRC_DIR
+
+Each row runs one tool on one bad input and requires:
+  * exit code 1 (bad data, run-time failure) or 2 (usage error), as the row says;
+    never a crash (signal, sanitizer abort) or 0;
+  * exactly one non-empty line on stderr (run with -q so progress stays quiet),
+    of the form "<tool>: error: ..." or "<tool>: usage error: ...", naming the
+    offending file or option;
+  * nothing left in the output folder (no output, no temporary file).
+Then every tool that writes a file is interrupted with SIGINT and SIGTERM
+mid-run, and must leave the output folder empty.
+Prints one line per failing row and a summary line; exit 0 when all pass.
+"""
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+BIN, SRC = sys.argv[1], sys.argv[2]
+DATA = os.path.join(SRC, "tests", "data")
+T = tempfile.mkdtemp(prefix="pm_matrix_")
+OUT = os.path.join(T, "out")
+os.mkdir(OUT)
+
+
+def fx(name):
+    return os.path.join(T, name)
+
+
+def write(name, text, mode="w"):
+    with open(fx(name), mode) as f:
+        f.write(text)
+    return fx(name)
+
+
+def nrrd(name, sizes, values, typ="float"):
+    body = " ".join(str(v) for v in values)
+    return write(name, "NRRD0004\ntype: %s\ndimension: %d\nsizes: %s\nspacings: %s\nencoding: ascii\n\n%s\n"
+                 % (typ, len(sizes), " ".join(map(str, sizes)), " ".join(["0.5"] * len(sizes)), body))
+
+
+def ply(name, points, count=None):
+    head = "ply\nformat ascii 1.0\nelement vertex %d\nproperty float x\nproperty float y\nproperty float z\nend_header\n"
+    return write(name, head % (len(points) if count is None else count) + "".join("%s %s %s\n" % p for p in points))
+
+
+# --- fixtures ----------------------------------------------------------------
+MISSING_V, MISSING_M = fx("missing.nrrd"), fx("missing.ply")
+EMPTY_V, EMPTY_M = write("empty.nrrd", ""), write("empty.ply", "")
+TRUNC_V = os.path.join(DATA, "truncated.nrrd")
+TRUNC_M = ply("truncated.ply", [(0, 0, 0), (1, 0, 0)], count=50)
+PLANE = os.path.join(DATA, "plane2d.nrrd")
+MASK = os.path.join(DATA, "box_mask.nrrd")      # uint8 labels 0/1
+SDF = os.path.join(DATA, "box_sdf.nrrd")        # float signed distance
+MA = os.path.join(DATA, "box_ma.ply")
+NAN_V = nrrd("nan_inf.nrrd", [3, 3, 3], ["nan" if k == 4 else ("inf" if k == 20 else -1 + 0.1 * k) for k in range(27)])
+NAN_M = ply("nan.ply", [(0, 0, 0), (1, 0, 0), ("nan", 1, 0), (0, 0, 1), (1, 1, 1)])
+FAR = nrrd("far.nrrd", [4, 4, 4], [2.0 + k * 0.01 for k in range(64)])  # positive everywhere: no surface
+EMPTY_MASK = os.path.join(DATA, "empty_mask.nrrd")
+ZEROS = os.path.join(DATA, "zeros.nrrd")
+NOPTS = os.path.join(DATA, "empty.ply")
+SPHERE_PTS = os.path.join(DATA, "sphere_points.ply")
+TET = os.path.join(DATA, "tet.off")
+UNWRITABLE = os.path.join(T, "no_such_dir", "out")
+
+# --- the tools and how each is called ----------------------------------------
+# Each tool: a function (input, output) -> argv for its main input, the kind of
+# that input ("volume" or "mesh"), the output's extension, and rows of its own
+# (wrong-type volumes, no surface, out-of-range options).
+def o(ext):
+    return os.path.join(OUT, "result" + ext)
+
+
+TOOLS = {
+    "volconv": dict(kind="volume", ext=".nrrd", argv=lambda i, out: [i, out]),
+    "particles": dict(kind="volume", ext=".ply", argv=lambda i, out: ["-i", i, "--iso", "0", "--spacing", "0.5", "-o", out]),
+    "render": dict(kind="mesh", ext=".png", argv=lambda i, out: [i, "-o", out]),
+    "morph": dict(kind="volume", ext=".nrrd", argv=lambda i, out: [i, out, "--op", "dilate"]),
+    "gradlimit": dict(kind="volume", ext=".nrrd", argv=lambda i, out: [i, out]),
+    "mcinit": dict(kind="volume", ext=".ply", argv=lambda i, out: [i, out, "--iso", "0"]),
+    "tighten": dict(kind="volume", ext=".nrrd", argv=lambda i, out: [i, out, "-r", "0.5"]),
+    "medialaxis": dict(kind="volume", ext=".ply", argv=lambda i, out: [i, out]),
+    "sizingfield": dict(kind="volume", ext=".nrrd", argv=lambda i, out: ["--sdf", i, "--ma", MA, "-o", out]),
+    "tetlabel": dict(kind="mesh", ext=".ply", argv=lambda i, out: [i, "--implicit", "sphere", "-o", out]),
+    "meshstats": dict(kind="mesh", ext=".json", argv=lambda i, out: [i, "-o", out]),
+    "baseline": dict(kind="volume", ext=".ply", argv=lambda i, out: ["mc", "-i", i, "--iso", "0", "-o", out]),
+    "multiparticles": dict(kind="volume", ext=".ply", argv=lambda i, out: ["--materials", i, "--spacing", "0.5", "-o", out]),
+}
+
+# Extra rows: (tool, case, argv, exit code, what the message must name).
+P, VOL = "particles", "volume"
+EXTRA = [
+    # a second input of the mesh tools is a volume (a field) or a point set
+    ("tetlabel", "field missing", [SPHERE_PTS, "-i", MISSING_V, "--iso", "0", "-o", o(".ply")], 1, MISSING_V),
+    ("tetlabel", "field 2-D", [SPHERE_PTS, "-i", PLANE, "--iso", "0", "-o", o(".ply")], 1, PLANE),
+    ("tetlabel", "field NaN/Inf", [SPHERE_PTS, "-i", NAN_V, "--iso", "0", "-o", o(".ply")], 1, NAN_V),
+    ("tetlabel", "field no surface", [SPHERE_PTS, "-i", FAR, "--iso", "0", "-o", o(".ply")], 1, FAR),
+    ("tetlabel", "too few points", [NOPTS, "--implicit", "sphere", "-o", o(".ply")], 1, NOPTS),
+    ("meshstats", "field truncated", [TET, "-i", TRUNC_V, "--iso", "0", "-o", o(".json")], 1, TRUNC_V),
+    ("meshstats", "sizing is labels (h = 0)", [TET, "--sizing", MASK, "-o", o(".json")], 1, MASK),
+    ("meshstats", "sizing NaN/Inf", [TET, "--sizing", NAN_V, "-o", o(".json")], 1, NAN_V),
+    ("meshstats", "point set, no faces", [SPHERE_PTS, "-o", o(".json")], 1, SPHERE_PTS),
+    ("render", "no points", [NOPTS, "-o", o(".png")], 1, NOPTS),
+    ("volconv", "mesh input missing", [MISSING_M, o(".nrrd"), "--sdf", "--voxel", "0.1"], 1, MISSING_M),
+    ("volconv", "mesh input NaN", [NAN_M, o(".nrrd"), "--sdf", "--voxel", "0.1"], 1, NAN_M),
+    ("volconv", "mesh input truncated", [TRUNC_M, o(".nrrd"), "--sdf", "--voxel", "0.1"], 1, TRUNC_M),
+    ("volconv", "no surface for --distance", [FAR, o(".nrrd"), "--distance", "0"], 1, FAR),
+    (P, "seeds missing", ["--implicit", "sphere", "--spacing", "0.3", "--init", MISSING_M, "-o", o(".ply")], 1, MISSING_M),
+    (P, "seeds empty", ["--implicit", "sphere", "--spacing", "0.3", "--init", EMPTY_M, "-o", o(".ply")], 1, EMPTY_M),
+    (P, "seeds truncated", ["--implicit", "sphere", "--spacing", "0.3", "--init", TRUNC_M, "-o", o(".ply")], 1, TRUNC_M),
+    (P, "seeds NaN", ["--implicit", "sphere", "--spacing", "0.3", "--init", NAN_M, "-o", o(".ply")], 1, "seed point 2"),
+    (P, "sizing is labels (h = 0)", ["--implicit", "sphere", "--sizing", MASK, "-o", o(".ply")], 1, MASK),
+    (P, "sizing NaN/Inf", ["--implicit", "sphere", "--sizing", NAN_V, "-o", o(".ply")], 1, NAN_V),
+    (P, "sizing 2-D", ["--implicit", "sphere", "--sizing", PLANE, "-o", o(".ply")], 1, PLANE),
+    (P, "no surface", ["-i", FAR, "--iso", "0", "--spacing", "0.5", "-o", o(".ply")], 1, FAR),
+    # wrong-type volumes: labels where a distance field is expected and the reverse
+    ("medialaxis", "labels, not a distance field", [MASK, o(".ply")], 1, MASK),
+    ("sizingfield", "labels, not a distance field", ["--sdf", MASK, "--ma", MA, "-o", o(".nrrd")], 1, MASK),
+    ("sizingfield", "medial axis missing", ["--sdf", SDF, "--ma", MISSING_M, "-o", o(".nrrd")], 1, MISSING_M),
+    ("sizingfield", "medial axis truncated", ["--sdf", SDF, "--ma", TRUNC_M, "-o", o(".nrrd")], 1, TRUNC_M),
+    ("tighten", "distance field, not a mask", [SDF, o(".nrrd"), "-r", "0.5"], 1, SDF),
+    ("morph", "distance field, not labels", [SDF, o(".nrrd"), "--op", "dilate"], 1, SDF),
+    ("mcinit", "distance field, not labels (--junctions)", [SDF, o(".ply"), "--junctions"], 1, SDF),
+    ("gradlimit", "labels, not a sizing field", [EMPTY_MASK, o(".nrrd")], 1, EMPTY_MASK),
+    # no surface
+    ("mcinit", "no surface", [FAR, o(".ply"), "--iso", "0"], 1, FAR),
+    ("tighten", "empty mask", [EMPTY_MASK, o(".nrrd"), "-r", "0.5"], 1, EMPTY_MASK),
+    ("medialaxis", "no surface", [FAR, o(".ply")], 1, FAR),
+    ("sizingfield", "no surface", ["--sdf", FAR, "--ma", MA, "-o", o(".nrrd")], 1, FAR),
+    ("gradlimit", "no h > 0", [ZEROS, o(".nrrd")], 1, ZEROS),
+    # out-of-range options
+    ("volconv", "--voxel -1", [TET, o(".nrrd"), "--sdf", "--voxel", "-1"], 2, "--voxel"),
+    ("volconv", "--type bogus", [SDF, o(".nrrd"), "--type", "bogus"], 2, "bogus"),
+    (P, "--spacing 0", ["--implicit", "sphere", "--spacing", "0", "-o", o(".ply")], 2, "spacing"),
+    (P, "--threads -1", ["--implicit", "sphere", "--spacing", "0.3", "--threads", "-1", "-o", o(".ply")], 2, "--threads"),
+    ("render", "--size 0x10", [SPHERE_PTS, "-o", o(".png"), "--size", "0x10"], 2, "--size"),
+    ("morph", "--iterations 0", [MASK, o(".nrrd"), "--op", "dilate", "--iterations", "0"], 2, "--iterations"),
+    ("morph", "--downsample 0", [MASK, o(".nrrd"), "--downsample", "0"], 2, "--downsample"),
+    ("gradlimit", "--delta -1", [SDF, o(".nrrd"), "--delta", "-1"], 2, "--delta"),
+    ("mcinit", "--decimate 0", [SDF, o(".ply"), "--iso", "0", "--decimate", "0"], 2, "--decimate"),
+    ("tighten", "--radius 0", [MASK, o(".nrrd"), "-r", "0"], 2, "radius"),
+    ("medialaxis", "--cos-alpha 2", [SDF, o(".ply"), "--cos-alpha", "2"], 2, "--cos-alpha"),
+    ("sizingfield", "--eps 0", ["--sdf", SDF, "--ma", MA, "-o", o(".nrrd"), "--eps", "0"], 2, "--eps"),
+    ("tetlabel", "--inside sideways", [SPHERE_PTS, "--implicit", "sphere", "-o", o(".ply"), "--inside", "sideways"], 2, "--inside"),
+    ("meshstats", "--require nonsense", [TET, "--require", "nonsense>=1"], 2, "nonsense"),
+    ("baseline", "mode bogus", ["bogus", "-i", SDF, "-o", o(".ply")], 2, "bogus"),
+    ("baseline", "no surface", ["mc", "-i", FAR, "--iso", "0", "-o", o(".ply")], 1, FAR),
+    ("multiparticles", "--spacing 0", ["--materials", MASK, "--spacing", "0", "-o", o(".ply")], 2, "spacing"),
+]
+
+
+TIMES = []
+
+
+def run(tool, argv, timeout=60):
+    exe = os.path.join(BIN, tool)
+    t0 = time.time()
+    p = subprocess.run([exe, "-q"] + argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=timeout)
+    TIMES.append((time.time() - t0, tool + " " + " ".join(os.path.basename(a) for a in argv)))
+    return p.returncode, p.stderr.decode("utf-8", "replace")
+
+
+failures, count = [], 0
+T0 = time.time()
+present = [t for t in TOOLS if os.path.exists(os.path.join(BIN, t))]
+rows = []
+for t in present:
+    d = TOOLS[t]
+    if d["kind"] == "volume":
+        common = [("missing file", MISSING_V, 1), ("empty file", EMPTY_V, 1), ("truncated file", TRUNC_V, 1),
+                  ("2-D volume", PLANE, 1), ("NaN/Inf voxels", NAN_V, 1)]
+    else:
+        common = [("missing file", MISSING_M, 1), ("empty file", EMPTY_M, 1), ("truncated file", TRUNC_M, 1),
+                  ("NaN vertex", NAN_M, 1)]
+    for case, path, code in common:
+        rows.append((t, case, d["argv"](path, o(d["ext"])), code, path))
+    good = {"volconv": SDF, "particles": SDF, "render": SPHERE_PTS, "morph": MASK, "gradlimit": SDF, "mcinit": SDF,
+            "tighten": MASK, "medialaxis": SDF, "sizingfield": SDF, "tetlabel": SPHERE_PTS, "meshstats": TET,
+            "baseline": SDF, "multiparticles": MASK}[t]
+    rows.append((t, "unwritable output", d["argv"](good, UNWRITABLE + d["ext"]), 1, UNWRITABLE + d["ext"]))
+rows += [r for r in EXTRA if r[0] in present]
+
+for tool, case, argv, code, names in rows:
+    count += 1
+    try:
+        rc, err = run(tool, argv)
+    except subprocess.TimeoutExpired:
+        failures.append("%s / %s: timed out" % (tool, case))
+        continue
+    lines = [l for l in err.splitlines() if l.strip()]
+    problems = []
+    if rc != code:
+        problems.append("exit %d, expected %d" % (rc, code))
+    if len(lines) != 1:
+        problems.append("%d stderr lines, expected 1" % len(lines))
+    prefix = "%s: %s" % (tool, "usage error: " if code == 2 else "error: ")
+    if not lines or not lines[0].startswith(prefix):
+        problems.append("message does not start with %r" % prefix)
+    if names not in err:
+        problems.append("message does not name %r" % os.path.basename(names))
+    left = os.listdir(OUT)
+    if left:
+        problems.append("left files behind: %s" % " ".join(left))
+        for f in left:
+            os.remove(os.path.join(OUT, f))
+    if problems:
+        failures.append("%s / %s: %s\n    stderr: %s" % (tool, case, "; ".join(problems), err.strip()[:400]))
+
+T1 = time.time()
+# --- interrupted runs leave nothing ------------------------------------------
+# Long-enough runs of each writing tool, signalled at a few delays so that some
+# land during computation and some during writing.
+BIG_SDF = fx("big_sdf.nrrd")
+subprocess.run([os.path.join(BIN, "volconv"), "-q", os.path.join(DATA, "tet.off"), BIG_SDF, "--sdf", "--voxel",
+                "0.01"], check=True)
+LONG = [
+    ("volconv", [os.path.join(DATA, "tet.off"), o(".nrrd"), "--sdf", "--voxel", "0.004"]),
+    ("particles", ["--implicit", "torus", "--spacing", "0.02", "-o", o(".ply")]),
+    ("tighten", [MASK, o(".nrrd"), "-r", "0.5", "--upsample", "8"]),
+    ("medialaxis", [BIG_SDF, o(".ply")]),
+]
+for tool, argv in LONG:
+    if tool not in present:
+        continue
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        for delay in (0.3, 1.0):
+            count += 1
+            p = subprocess.Popen([os.path.join(BIN, tool), "-q"] + argv, stdout=subprocess.DEVNULL,
+                                 stderr=subprocess.PIPE)
+            time.sleep(delay)
+            t0 = time.time()
+            p.send_signal(sig)
+            try:
+                _, err = p.communicate(timeout=30)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.communicate()
+                failures.append("%s / %s after %.1fs: did not stop" % (tool, sig.name, delay))
+                continue
+            TIMES.append((time.time() - t0, "%s stop after %s" % (tool, sig.name)))
+            left = os.listdir(OUT)
+            if p.returncode == 0:
+                failures.append("%s / %s after %.1fs: finished before the signal; make the run longer" % (tool, sig.name, delay))
+            elif left:
+                failures.append("%s / %s after %.1fs: left %s" % (tool, sig.name, delay, " ".join(left)))
+            for f in left:
+                os.remove(os.path.join(OUT, f))
+
+shutil.rmtree(T, ignore_errors=True)
+if os.environ.get("PM_MATRIX_TIMES"):
+    for t, what in sorted(TIMES, reverse=True)[:12]:
+        print("%6.2fs  %s" % (t, what))
+for f in failures:
+    print("FAIL " + f)
+print("bad-input matrix: %d rows in %.0f s, interrupted runs in %.0f s; tools: %s"
+      % (count, T1 - T0, time.time() - T1, " ".join(present)))
+print("%d passed, %d failed" % (count - len(failures), len(failures)))
+sys.exit(1 if failures else 0)
