@@ -89,7 +89,28 @@ def case_particles():
             row("particles", "brain mask surface", None, "", note="../shared/data absent: skipped")
 
 
-CASES = {"field": case_field, "particles": case_particles}
+def case_multiparticles():
+    exe = os.path.join(BIN, "multiparticles")
+    if not os.path.exists(exe):
+        row("multiparticles", "multiparticles", None, "", note="tool not built")
+        return
+    mickey = os.path.join(SHARED, "cleaver-mickey", "mickey.nrrd")
+    if not os.path.exists(mickey):
+        row("multiparticles", "mickey", None, "", note="../shared/data absent: skipped")
+        return
+    with tempfile.TemporaryDirectory() as tmp:
+        out = os.path.join(tmp, "m.ply")
+        for threads in (1, 2):
+            p, dt = run([exe, "--materials", mickey, "--spacing", "1.5", "-o", out, "--stats", "-", "-q",
+                         "--threads", str(threads)])
+            st = json.loads(p.stdout)
+            lv = st["levels"]
+            note = ", ".join(f"{k} {lv[k]['particles']}" for k in ("points", "curves", "surfaces"))
+            row("multiparticles", f"mickey 5 materials s=1.5 ({threads} thread{'s' if threads > 1 else ''})",
+                round(dt, 2), "s", note=note + f", surfaces {lv['surfaces']['iterations']} iterations")
+
+
+CASES = {"field": case_field, "particles": case_particles, "multiparticles": case_multiparticles}
 
 
 def main():

@@ -173,3 +173,6 @@ pm_cli_script(mesh.workflow mesh_test.sh)
 add_test(NAME cli.bad_input_matrix COMMAND python3 ${CMAKE_SOURCE_DIR}/tests/cli/bad_input_matrix.py
   $<TARGET_FILE_DIR:volconv> ${CMAKE_SOURCE_DIR})
 set_tests_properties(cli.bad_input_matrix PROPERTIES LABELS cli TIMEOUT 300)
+# == multiparticles (Chapter 6 junction sampling)
+pm_cli_script(multiparticles.wedges multiparticles_test.sh)
+pm_cli_test(multiparticles.help_example "Example:.*multiparticles --materials" $<TARGET_FILE:multiparticles> --help)
