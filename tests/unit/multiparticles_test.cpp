@@ -190,6 +190,24 @@ TEST(MultiParticles, LabelMapWedges) {
   }
 }
 
+// A sizing field instead of --spacing: h = 0.25 over the box gives chains
+// spaced h along the triple line.
+TEST(MultiParticles, SizingFieldSetsTheSpacing) {
+  const MaterialSet m = test::three_wedges(0.0);
+  const SizingField h = SizingField::constant(0.25, test::cube(1.0));
+  MultiParticleParams p = quiet(0);
+  p.surfaces = false;
+  const MultiParticleResult r = distribute_multi_particles(m, junction_seeds_from_materials(m), &h, p);
+  std::vector<double> z;
+  for (std::size_t i = 0; i < r.positions.size(); ++i) {
+    EXPECT_NEAR(r.spacing[i], 0.25, 1e-12);
+    if (r.junction[i] == 3) z.push_back(r.positions[i].z);
+  }
+  ASSERT_GE(z.size(), 6u);
+  std::sort(z.begin(), z.end());
+  EXPECT_NEAR((z.back() - z.front()) / double(z.size() - 1), 0.25, 0.15 * 0.25);
+}
+
 TEST(MultiParticles, BadInput) {
   const MaterialSet m = test::three_wedges(0.0);
   const std::vector<JunctionSeed> seeds = junction_seeds_from_materials(m);
