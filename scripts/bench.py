@@ -110,7 +110,47 @@ def case_multiparticles():
                 round(dt, 2), "s", note=note + f", surfaces {lv['surfaces']['iterations']} iterations")
 
 
-CASES = {"field": case_field, "particles": case_particles, "multiparticles": case_multiparticles}
+def case_ch5():
+    """Whole Chapter 5 pipeline on the 256^3 brain mask (Makefile.pipeline ch5, 2 threads), per-stage
+    times from the stages' --stats JSON, and CGAL Mesh_3 (baseline cgal) on the same field at the same
+    vertex count."""
+    brain = os.path.join(SHARED, "iso2mesh-head", "derived", "brain.nrrd")
+    if not os.path.exists(brain):
+        row("ch5", "brain mask pipeline", None, "", note="../shared/data absent: skipped")
+        return
+    eps = os.environ.get("PM_BENCH_CH5_EPS", "0.5")
+    with tempfile.TemporaryDirectory() as tmp:
+        out = os.path.join(tmp, "brain")
+        _, wall = run(["make", "-s", "-f", os.path.join(ROOT, "Makefile.pipeline"), "ch5", f"INPUT={brain}",
+                       f"OUT={out}", f"BIN={BIN}", "THREADS=2", "FLAGS=-q", f"EPS={eps}"])
+        q = json.load(open(os.path.join(out, "quality.json")))
+        n = q["vertices"]
+        total = 0.0
+        for stage in ("morph", "tighten", "medialaxis", "sizingfield", "gradlimit", "mcinit", "particles",
+                      "tetlabel"):
+            p = os.path.join(out, f"{stage}.json")
+            if os.path.exists(p):
+                t = json.load(open(p))["seconds"]["total"]
+                total += t
+                row("ch5", f"stage {stage}", round(t, 2), "s")
+        row("ch5", "brain mask to mesh (stages, 2 threads)", round(total, 1), "s", "~100k vertices < 120 s",
+            total < 120 and 80000 <= n <= 120000, f"{n} vertices (EPS={eps}); make wall {wall:.1f} s incl. "
+            f"meshstats + renders")
+        row("ch5", "our mesh radius ratio min / mean", f"{q['radius_ratio']['min']:.3f} / "
+            f"{q['radius_ratio']['mean']:.3f}", "", ">= 0.30 / >= 0.94",
+            q["radius_ratio"]["min"] >= 0.3 and q["radius_ratio"]["mean"] >= 0.94)
+        row("ch5", "our mesh valence 6", round(100 * q["valence"]["share_6"], 1), "%", ">= 65",
+            q["valence"]["share_6"] >= 0.65)
+        cg = os.path.join(out, "cgal.json")
+        run([os.path.join(BIN, "baseline"), "cgal", "-i", os.path.join(out, "sdf.nrrd"), "--iso", "0",
+             "--vertices", str(n), "-o", os.path.join(out, "cgal.ply"), "--stats", cg, "-q", "--threads", "2"])
+        c = json.load(open(cg))
+        row("ch5", "CGAL Mesh_3, same field and vertex count (2 threads)", round(c["seconds_final_run"], 1), "s",
+            note=f"{c['counts']['vertices']} vertices, facet size {c['parameters']['facet_size']:.3g}; "
+                 f"{len(c.get('size_search', []))} runs in the size search, {c['seconds']['total']:.1f} s in all")
+
+
+CASES = {"field": case_field, "particles": case_particles, "ch5": case_ch5, "multiparticles": case_multiparticles}
 
 
 def main():

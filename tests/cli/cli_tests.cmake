@@ -168,6 +168,12 @@ pm_cli_test(meshstats.no_faces "meshstats: error: .*sphere_points.ply.*no faces;
 pm_cli_test(meshstats.bad_requirement "meshstats: usage error: requirement \"frob\" is unknown" ${MS} ${D}/tet.off --require frob)
 pm_cli_test(meshstats.check_fails "meshstats: check failed: .*tet.off.*rr_min>=0.99" ${MS} ${D}/tet.off --require rr_min>=0.99)
 pm_cli_script(mesh.workflow mesh_test.sh)
+# == baseline (marching cubes, CGAL Mesh_3) and Chapter 5 bad input
+pm_cli_script(baseline.sphere baseline_test.sh)
+pm_cli_test(baseline.help_example "Example:.*baseline cgal -i" $<TARGET_FILE:baseline> --help)
+pm_cli_test(baseline.bad_mode "baseline: usage error: mode: frob not in" $<TARGET_FILE:baseline> frob -i ${D}/onevoxel.nrrd -o /tmp/pm_b.ply)
+pm_cli_script(ch5.bad_input ch5_bad_input_test.sh)
+pm_cli_test(meshstats.seeds_without_component "meshstats: error: .*sphere_points.ply.*no vertex property \"component\"" ${MS} ${D}/tet.off --seeds ${D}/sphere_points.ply)
 # == bad-input matrix (issue 7): every tool x missing/empty/truncated/2-D/wrong-type/NaN/no-surface
 #    inputs, unwritable outputs, out-of-range options; SIGINT/SIGTERM mid-run leaves nothing
 add_test(NAME cli.bad_input_matrix COMMAND python3 ${CMAKE_SOURCE_DIR}/tests/cli/bad_input_matrix.py

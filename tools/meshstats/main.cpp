@@ -12,6 +12,7 @@
 #include "pm/cli/run_tool.h"
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
+#include "pm/ops/coverage.h"
 #include "pm/ops/meshstats.h"
 
 namespace {
@@ -47,6 +48,8 @@ int main(int argc, char** argv) {
                 "--require rr_min>=0.3,rr_mean>=0.94,watertight,manifold");
   std::string mesh_path, out, sizing_path, require;
   bool no_self = false;
+  std::string seeds_path;
+  std::size_t min_seeds = 8;
   pm::FieldOptions fo;
   tool.app.add_option("mesh", mesh_path, "Triangle mesh (.ply .off .obj .stl)")->required();
   pm::add_field_options(tool.app, fo);
@@ -56,6 +59,12 @@ int main(int argc, char** argv) {
                       "Comma-separated checks, e.g. rr_min>=0.3,rr_mean>=0.94,valence6>=0.65,"
                       "valence_outside_5_7<=0.01,edge_le_2h>=0.9999,watertight,manifold,no_self_intersections,genus=0");
   tool.app.add_flag("--no-self-intersections", no_self, "Skip the (slower) self-intersection test");
+  tool.app.add_option("--seeds", seeds_path,
+                      "Marching-cubes seeds of the same surface (mcinit output, vertex property 'component'): "
+                      "fail (exit 1) when a component of the isosurface has no mesh vertex near it");
+  tool.app.add_option("--min-component-seeds", min_seeds,
+                      "With --seeds: components with fewer seeds than this (smaller than a few voxels) only warn")
+      ->capture_default_str();
   return tool.run(argc, argv, [&] {
     auto& st = pm::stats();
     st["inputs"] = {mesh_path};
@@ -79,7 +88,36 @@ int main(int argc, char** argv) {
       pm::ScopedStage s("quality");
       q = pm::mesh_quality(m, p);
     }
-    const pm::Json j = pm::to_json(q);
+    pm::Json j = pm::to_json(q);
+    std::string missing;
+    if (!seeds_path.empty()) {
+      const pm::Mesh seeds = pm::read_mesh(seeds_path);
+      std::vector<pm::ComponentCoverage> cov;
+      try {
+        cov = pm::component_coverage(seeds, m.vertices);
+      } catch (const pm::InputError& e) {
+        throw pm::InputError(pm::quote(seeds_path) + ": " + e.what());
+      }
+      std::size_t n_missing = 0, n_small = 0;
+      for (const auto& c : cov) {
+        if (c.points > 0) continue;
+        const pm::Vec3 mid = (c.bounds.lo + c.bounds.hi) * 0.5;
+        char where[160];
+        std::snprintf(where, sizeof where, "component %d (%zu seeds, around (%.4g, %.4g, %.4g))", c.component,
+                      c.seeds, mid.x, mid.y, mid.z);
+        if (c.seeds < min_seeds) {
+          ++n_small;
+          pm::warn(std::string("small surface ") + where + " has no mesh vertex");
+        } else {
+          if (n_missing < 5) missing += std::string(n_missing ? "; " : "") + where;
+          ++n_missing;
+        }
+      }
+      j["surface_components"] = cov.size();
+      j["unsampled_components"] = n_missing;
+      j["unsampled_small_components"] = n_small;
+      if (n_missing > 5) missing += "; and " + std::to_string(n_missing - 5) + " more";
+    }
     st["quality"] = j;
     print_table(q);
     if (out == "-") {
@@ -91,6 +129,10 @@ int main(int argc, char** argv) {
         if (!f) throw pm::IoError(pm::quote(out) + ": cannot write");
       });
     }
+    if (!missing.empty())
+      throw pm::InputError(pm::quote(mesh_path) + ": the mesh misses components of the isosurface found by the "
+                           "marching-cubes seeds " + pm::quote(seeds_path) + ": " + missing +
+                           "; expected particles on every component (seed the particles with these seeds)");
     if (!require.empty()) {
       const auto failed = pm::check_requirements(q, require);
       if (!failed.empty()) {
