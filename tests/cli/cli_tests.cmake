@@ -182,3 +182,7 @@ set_tests_properties(cli.bad_input_matrix PROPERTIES LABELS cli TIMEOUT 300)
 # == multiparticles (Chapter 6 junction sampling)
 pm_cli_script(multiparticles.wedges multiparticles_test.sh)
 pm_cli_test(multiparticles.help_example "Example:.*multiparticles --materials" $<TARGET_FILE:multiparticles> --help)
+# == Chapter 6: per-label tightening, multi-material tetlabel/meshstats, bad input, the ch6 pipeline
+pm_cli_script(ch6.tools ch6_test.sh)
+pm_cli_script(ch6.pipeline ch6_pipeline_test.sh)
+set_tests_properties(cli.ch6.pipeline PROPERTIES TIMEOUT 120)

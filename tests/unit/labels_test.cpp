@@ -67,5 +67,30 @@ TEST(Labels, TooManyDistinctValues) {
   EXPECT_EQ(label_counts(v).size(), 1000u);
 }
 
+TEST(Labels, DropSmallLabels) {
+  // 10^3: label 1 for x < 5, label 2 beyond; a stray voxel of 7 inside 1 and
+  // two voxels of 9 inside 2.
+  Volume v(VoxelType::u8, Dims{10, 10, 10});
+  for (std::size_t k = 0; k < 10; ++k)
+    for (std::size_t j = 0; j < 10; ++j)
+      for (std::size_t i = 0; i < 10; ++i) v.set(i, j, k, i < 5 ? 1 : 2);
+  v.set(2, 2, 2, 7);
+  v.set(7, 7, 7, 9);
+  v.set(7, 7, 8, 9);
+  std::vector<std::int64_t> dropped;
+  const Volume w = drop_small_labels(v, 3, &dropped);
+  EXPECT_EQ(dropped, (std::vector<std::int64_t>{7, 9}));
+  EXPECT_EQ(w.type(), VoxelType::u8);
+  const auto c = label_counts(w);
+  ASSERT_EQ(c.size(), 2u);
+  EXPECT_EQ(c.at(1), 500u);
+  EXPECT_EQ(c.at(2), 500u);
+  EXPECT_EQ(w.get(2, 2, 2), 1.0);
+  EXPECT_EQ(w.get(7, 7, 8), 2.0);
+  // Nothing to drop: unchanged; everything too small: error.
+  EXPECT_EQ(label_counts(drop_small_labels(w, 3)).size(), 2u);
+  EXPECT_THROW(drop_small_labels(v, 100000), InputError);
+}
+
 }  // namespace
 }  // namespace pm

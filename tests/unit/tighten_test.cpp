@@ -195,5 +195,49 @@ TEST(Tighten, RejectsBadRadius) {
   EXPECT_THROW(tighten(m, p), UsageError);
 }
 
+// Chapter 6: a 20^3 label map, label 1 for x < 9.5, label 2 beyond, and a
+// 6^3 cube of label 5 inside label 2.
+TEST(Tighten, PerLabelSharesOneGridAndIgnoresTheBorder) {
+  Volume lv(VoxelType::u16, {20, 20, 20});
+  for (std::size_t k = 0; k < 20; ++k)
+    for (std::size_t j = 0; j < 20; ++j)
+      for (std::size_t i = 0; i < 20; ++i) {
+        int l = i < 10 ? 1 : 2;
+        if (i >= 12 && i < 18 && j >= 7 && j < 13 && k >= 7 && k < 13) l = 5;
+        lv.set(i, j, k, l);
+      }
+  TightenParams p;
+  p.radius = 1;
+  std::vector<int> labels;
+  std::vector<Volume> d;
+  tighten_labels(lv, p, [&](int l, TightenResult&& r) {
+    labels.push_back(l);
+    EXPECT_EQ(r.pad, 0u);
+    d.push_back(std::move(r.distance));
+  });
+  ASSERT_EQ(labels, (std::vector<int>{1, 2, 5}));
+  for (const Volume& v : d) {
+    EXPECT_TRUE(v.dims() == lv.dims());
+    EXPECT_NEAR(v.geometry().origin.x, 0.0, 1e-12);
+  }
+  // The flat 1|2 interface (x = 9.5) away from the cube stays put: at the node
+  // x = 9 the distances are -0.5 (label 1) and +0.5 (label 2) within the
+  // distance transform's error.
+  EXPECT_NEAR(d[0].get(9, 2, 2), -0.5, 0.15);
+  EXPECT_NEAR(d[1].get(9, 2, 2), 0.5, 0.15);
+  // The volume border is not an interface: the corner node of label 1 is
+  // 9.5 away from label 1's only surface (x = 9.5), not half a voxel.
+  EXPECT_LT(d[0].get(0, 0, 0), -9.0);
+  EXPECT_LT(d[1].get(19, 0, 19), -5.0);
+  // The cube is tightened (corners rounded with r = 1) but kept: its centre is inside.
+  EXPECT_LT(d[2].get(15, 10, 10), -2.0);
+  EXPECT_GT(d[2].get(5, 10, 10), 5.0);
+  Volume one(VoxelType::u8, {6, 6, 6});
+  EXPECT_THROW(tighten_labels(one, p, [](int, TightenResult&&) {}), InputError);
+  Volume frac(VoxelType::f32, {6, 6, 6});
+  frac.set(1, 1, 1, 0.5);
+  EXPECT_THROW(tighten_labels(frac, p, [](int, TightenResult&&) {}), InputError);
+}
+
 }  // namespace
 }  // namespace pm

@@ -14,6 +14,7 @@
 #include "pm/io/volume_io.h"
 #include "pm/ops/coverage.h"
 #include "pm/ops/meshstats.h"
+#include "pm/ops/meshstats_materials.h"
 
 namespace {
 void print_table(const pm::MeshQuality& q) {
@@ -36,6 +37,24 @@ void print_table(const pm::MeshQuality& q) {
     std::fprintf(stderr, "  distance to surface: vertices max %.3g mean %.3g, centroids max %.3g mean %.3g (%zu not projected)\n",
                  q.dist_vertex_max, q.dist_vertex_mean, q.dist_centroid_max, q.dist_centroid_mean, q.dist_failed);
 }
+void print_interface_table(const pm::InterfaceQuality& q) {
+  if (pm::verbosity() == pm::Verbosity::quiet) return;
+  std::fprintf(stderr, "  interfaces: %zu vertices  %zu triangles  %zu material pairs  %zu materials\n",
+               q.overall.vertices, q.overall.faces, q.pairs.size(), q.materials.size());
+  std::fprintf(stderr, "  edges %zu  boundary %zu  junction-curve %zu  bad %zu  self-separating faces %zu\n", q.edges,
+               q.boundary_edges, q.junction_edges, q.bad_edges, q.self_faces);
+  std::fprintf(stderr, "  overall: radius ratio min %.3f mean %.3f   valence 6: %.1f%%\n", q.overall.rr_min,
+               q.overall.rr_mean, 100 * q.overall.valence6_share);
+  std::fprintf(stderr, "  %8s %8s %8s %7s %7s %6s %8s %9s %6s\n", "material", "vertices", "faces", "rr_min", "rr_mean",
+               "val6%", "closed", "manifold", "selfX");
+  for (const auto& [l, mq] : q.materials) {
+    const auto& t = mq.topology;
+    std::fprintf(stderr, "  %8d %8zu %8zu %7.3f %7.3f %6.1f %8s %9s %6s\n", l, mq.vertices, mq.faces, mq.rr_min,
+                 mq.rr_mean, 100 * mq.valence6_share, t.boundary_edges == 0 ? "yes" : "NO",
+                 t.nonmanifold_edges == 0 && t.nonmanifold_vertices == 0 ? "yes" : "NO",
+                 mq.self_intersecting_pairs < 0 ? "-" : std::to_string(mq.self_intersecting_pairs).c_str());
+  }
+}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -43,11 +62,15 @@ int main(int argc, char** argv) {
                 "Quality report of a triangle mesh: radius ratio (2 r_in / r_circ), angles, valence, edge length "
                 "over a sizing field h, water-tightness, manifoldness, components, genus, self-intersections "
                 "(CGAL), and distance to the isosurface it approximates (world units). A table on stderr, JSON "
-                "with -o. Exit 3 when a --require check fails.",
+                "with -o. Exit 3 when a --require check fails. A multi-material interface mesh (face properties "
+                "label_a, label_b, from tetlabel --materials) is measured as a whole and per material (each "
+                "material's surface taken from the interfaces), plus boundary, junction-curve and bad edges and "
+                "faces separating a label from itself (--require keys watertight, manifold, "
+                "no_self_intersections, labels_consistent and rr_min/rr_mean then hold for every material).",
                 "meshstats surface.ply -i brain_sdf.nrrd --iso 0 --sizing h.nrrd -o quality.json "
                 "--require rr_min>=0.3,rr_mean>=0.94,watertight,manifold");
   std::string mesh_path, out, sizing_path, require;
-  bool no_self = false;
+  bool no_self = false, single = false;
   std::string seeds_path;
   std::size_t min_seeds = 8;
   pm::FieldOptions fo;
@@ -59,6 +82,7 @@ int main(int argc, char** argv) {
                       "Comma-separated checks, e.g. rr_min>=0.3,rr_mean>=0.94,valence6>=0.65,"
                       "valence_outside_5_7<=0.01,edge_le_2h>=0.9999,watertight,manifold,no_self_intersections,genus=0");
   tool.app.add_flag("--no-self-intersections", no_self, "Skip the (slower) self-intersection test");
+  tool.app.add_flag("--single", single, "Measure an interface mesh (label_a/label_b faces) as one plain mesh");
   tool.app.add_option("--seeds", seeds_path,
                       "Marching-cubes seeds of the same surface (mcinit output, vertex property 'component'): "
                       "fail (exit 1) when a component of the isosurface has no mesh vertex near it");
@@ -68,6 +92,17 @@ int main(int argc, char** argv) {
   return tool.run(argc, argv, [&] {
     auto& st = pm::stats();
     st["inputs"] = {mesh_path};
+    auto write_report = [&](const pm::Json& j) {
+      if (out == "-") {
+        std::cout << j.dump(2) << "\n";
+      } else if (!out.empty()) {
+        pm::write_atomically(out, [&](const std::string& tmp) {
+          std::ofstream f(tmp);
+          f << j.dump(2) << "\n";
+          if (!f) throw pm::IoError(pm::quote(out) + ": cannot write");
+        });
+      }
+    };
     const pm::Mesh m = pm::read_mesh(mesh_path);
     if (m.faces.empty()) throw pm::InputError(pm::quote(mesh_path) + ": no faces; expected a triangle mesh");
     pm::MeshQualityParams p;
@@ -83,6 +118,27 @@ int main(int argc, char** argv) {
       p.sizing = sizing.get();
     }
     p.self_intersections = !no_self;
+    if (pm::is_interface_mesh(m) && !single) {
+      pm::InterfaceQuality iq;
+      {
+        pm::ScopedStage s("quality");
+        iq = pm::interface_quality(m, p);
+      }
+      const pm::Json j = pm::to_json(iq);
+      st["quality"] = j;
+      print_interface_table(iq);
+      write_report(j);
+      if (!require.empty()) {
+        const auto failed = pm::check_interface_requirements(iq, require);
+        if (!failed.empty()) {
+          std::string msg = pm::quote(mesh_path) + ": " + std::to_string(failed.size()) + " requirement(s) not met:";
+          for (const auto& f : failed) msg += " " + f + ";";
+          msg.pop_back();
+          throw pm::CheckFailed(msg);
+        }
+      }
+      return;
+    }
     pm::MeshQuality q;
     {
       pm::ScopedStage s("quality");
@@ -120,15 +176,7 @@ int main(int argc, char** argv) {
     }
     st["quality"] = j;
     print_table(q);
-    if (out == "-") {
-      std::cout << j.dump(2) << "\n";
-    } else if (!out.empty()) {
-      pm::write_atomically(out, [&](const std::string& tmp) {
-        std::ofstream f(tmp);
-        f << j.dump(2) << "\n";
-        if (!f) throw pm::IoError(pm::quote(out) + ": cannot write");
-      });
-    }
+    write_report(j);
     if (!missing.empty())
       throw pm::InputError(pm::quote(mesh_path) + ": the mesh misses components of the isosurface found by the "
                            "marching-cubes seeds " + pm::quote(seeds_path) + ": " + missing +

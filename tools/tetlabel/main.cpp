@@ -5,18 +5,129 @@
 #include "pm/base/log.h"
 #include "pm/base/stats.h"
 #include "pm/cli/field_options.h"
+#include "pm/cli/material_options.h"
 #include "pm/cli/run_tool.h"
 #include "pm/io/mesh.h"
 #include "pm/ops/tetlabel.h"
+#include "pm/ops/tetlabel_materials.h"
+
+namespace {
+
+// Copy the particles' vertex scalars (junction, label_a, ...) onto a mesh
+// made from them (vertex scalar "index" = particle index).
+void copy_point_scalars(const pm::Mesh& pts, pm::Mesh& m) {
+  const auto& idx = m.vertex_scalars.at("index");
+  for (const auto& [name, vals] : pts.vertex_scalars) {
+    if (name == "index") continue;
+    std::vector<double> v(m.vertices.size());
+    for (std::size_t i = 0; i < v.size(); ++i) v[i] = vals[std::size_t(idx[i])];
+    m.vertex_scalars[name] = std::move(v);
+  }
+}
+
+std::string surface_path(const std::string& spec, int label) {
+  const auto pct = spec.find("%d");
+  if (pct != std::string::npos) return spec.substr(0, pct) + std::to_string(label) + spec.substr(pct + 2);
+  return spec + "/material_" + std::to_string(label) + ".ply";
+}
+
+// Multi-material mode (--materials): interfaces, per-material surfaces, tets.
+void run_materials(const pm::Mesh& pts, const std::string& points, const pm::MaterialOptions& mo,
+                   const std::string& outside_opt, bool repair, const std::string& out,
+                   const std::string& surfaces, const std::string& tets) {
+  auto& st = pm::stats();
+  const pm::MaterialSet ms = pm::load_materials(mo);
+  pm::MaterialMeshParams mp;
+  mp.repair = repair;
+  if (outside_opt == "auto") {
+    mp.outside_label = pm::auto_outside_label(ms);
+  } else {
+    try {
+      std::size_t pos = 0;
+      mp.outside_label = std::stoi(outside_opt, &pos);
+      if (pos != outside_opt.size()) throw std::invalid_argument("");
+    } catch (const std::exception&) {
+      throw pm::UsageError("--outside \"" + outside_opt + "\" is not an integer label or auto");
+    }
+  }
+  pm::TetMesh tm;
+  {
+    pm::ScopedStage s("delaunay");
+    try {
+      tm = pm::delaunay(pts.vertices);
+    } catch (const pm::InputError& e) {
+      throw pm::InputError(pm::quote(points) + ": " + e.what());
+    }
+  }
+  pm::MaterialMeshes mm;
+  {
+    pm::ScopedStage s("label");
+    mm = pm::mesh_materials(tm, ms, mp);
+  }
+  if (mm.interfaces.faces.empty())
+    throw pm::InputError(pm::quote(points) + ": every tetrahedron has the same material (" +
+                         std::to_string(tm.labels.empty() ? mp.outside_label : tm.labels[0]) +
+                         "); expected particles sampling the interfaces between materials");
+  copy_point_scalars(pts, mm.interfaces);
+  const pm::MeshTopology it = pm::mesh_topology(mm.interfaces);
+  if (it.boundary_edges > 0)
+    pm::warn("the interface mesh has " + std::to_string(it.boundary_edges) + " boundary edges");
+  for (int l : mm.nonmanifold_materials)
+    pm::warn("the surface of material " + std::to_string(l) + " is not a closed manifold after the repair");
+  const std::size_t buried = pts.vertices.size() - it.vertices;
+  if (buried > 0)
+    pm::warn(std::to_string(buried) + " particles are not on any interface (off the interfaces, or too close)");
+  pm::write_mesh(mm.interfaces, out);
+  pm::Json outputs = {out};
+  pm::Json per = pm::Json::object();
+  for (auto& [l, m] : mm.surfaces) {
+    copy_point_scalars(pts, m);
+    const pm::MeshTopology t = pm::mesh_topology(m);
+    per[std::to_string(l)] = {{"tetrahedra", mm.tets_per_label[l]}, {"vertices", t.vertices}, {"faces", t.faces},
+                              {"components", t.components}, {"genus", t.genus},
+                              {"closed_manifold", t.closed_manifold()}};
+    if (!surfaces.empty()) {
+      const std::string path = surface_path(surfaces, l);
+      pm::write_mesh(m, path);
+      outputs.push_back(path);
+    }
+  }
+  if (!tets.empty()) {
+    pm::write_medit(tm, mp.outside_label, tets);
+    outputs.push_back(tets);
+  }
+  pm::Json pairs = pm::Json::array();
+  for (const auto& [a, b] : mm.pairs) pairs.push_back({a, b});
+  pm::info(std::to_string(it.vertices) + " vertices, " + std::to_string(it.faces) + " interface triangles, " +
+           std::to_string(mm.pairs.size()) + " material pairs, " + std::to_string(mm.surfaces.size()) +
+           " material surfaces");
+  st["parameters"] = {{"materials", mo.spec}, {"kernel", mo.kernel}, {"outside_label", mp.outside_label},
+                      {"repair", repair}};
+  st["outputs"] = outputs;
+  st["counts"] = {{"particles", pts.vertices.size()}, {"tetrahedra", mm.label_stats.tets},
+                  {"degenerate_tetrahedra", mm.label_stats.flat}, {"relabelled_for_manifold", mm.relabelled},
+                  {"vertices", it.vertices}, {"faces", it.faces}, {"particles_not_on_interfaces", buried},
+                  {"boundary_edges", it.boundary_edges}, {"nonmanifold_edges", it.nonmanifold_edges},
+                  {"pairs", pairs}, {"materials", per}};
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   pm::Tool tool("tetlabel",
                 "Triangulate surface particles: Delaunay-tetrahedralise them (TetGen), label each tetrahedron "
                 "inside (F < iso) or outside by the field at its circumcentre, and write the faces between "
                 "inside and outside as a closed, outward-oriented triangle mesh (PLY, OBJ, OFF, STL by "
-                "extension). World units throughout.",
-                "tetlabel points.ply -i brain_sdf.nrrd --iso 0 -o surface.ply --tets brain.mesh");
-  std::string points, out, tets, inside = "auto";
+                "extension). With --materials (Chapter 6): label each tetrahedron by the material with the "
+                "largest indicator at its circumcentre and write the interfaces between materials as one PLY "
+                "with integer face properties label_a < label_b (normal from a into b) and pair, plus each "
+                "material's closed surface (--material-surfaces), sharing its triangles with its neighbours. "
+                "World units throughout.",
+                "tetlabel points.ply -i brain_sdf.nrrd --iso 0 -o surface.ply --tets brain.mesh\n"
+                "  tetlabel points.ply --materials labels.nrrd -o interfaces.ply --material-surfaces out/ "
+                "--tets out/volume.mesh");
+  std::string points, out, tets, inside = "auto", outside = "auto", surfaces;
+  pm::MaterialOptions mo;
   bool repair = true;
   pm::FieldOptions fo;
   tool.app.add_option("points", points, "Particles (PLY, OFF, OBJ, STL vertices), world units")->required();
@@ -30,8 +141,31 @@ int main(int argc, char** argv) {
   tool.app.add_flag("--repair,!--no-repair", repair,
                     "Relabel tetrahedra at pinched vertices so the surface is a manifold (default on)");
   tool.app.add_option("--tets", tets, "Also write the inside tetrahedra as a MEDIT .mesh");
+  pm::add_material_options(tool.app, mo, false, "")
+      ->excludes("--input")
+      ->excludes("--implicit");
+  tool.app.add_option("--outside", outside,
+                      "With --materials: label outside the domain and beyond hull faces (auto = the material "
+                      "at most domain corners, e.g. the background)")
+      ->capture_default_str();
+  tool.app.add_option("--material-surfaces", surfaces,
+                      "With --materials: write each material's closed surface (all but the outside label) as "
+                      "DIR/material_<label>.ply, or to a pattern with %d, e.g. \"out/m%d.off\"");
   return tool.run(argc, argv, [&] {
     auto& st = pm::stats();
+    if (!mo.spec.empty()) {
+      st["inputs"] = {points, mo.spec};
+      // --kernel applies to the material volumes too; Catmull-Rom unless given.
+      if (tool.app.count("--kernel") > 0) mo.kernel = fo.kernel;
+      const pm::Mesh pts = pm::read_mesh(points);
+      if (pts.vertices.size() < 4)
+        throw pm::InputError(pm::quote(points) + ": " + std::to_string(pts.vertices.size()) +
+                             " points; expected at least 4 particles");
+      run_materials(pts, points, mo, outside, repair, out, surfaces, tets);
+      return;
+    }
+    if (!surfaces.empty() || outside != "auto")
+      throw pm::UsageError("--material-surfaces and --outside need --materials");
     st["inputs"] = {points, fo.input.empty() ? fo.implicit : fo.input};
     const pm::LoadedField lf = pm::load_field(fo);
     const pm::Mesh pts = pm::read_mesh(points);

@@ -7,6 +7,7 @@
 #include "pm/base/stats.h"
 #include "pm/cli/run_tool.h"
 #include "pm/field/distance.h"
+#include "pm/field/materials.h"
 #include "pm/field/mesh_sdf.h"
 #include "pm/field/volume_field.h"
 #include "pm/io/mesh.h"
@@ -84,6 +85,16 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"auto", "below", "above"}));
   tool.app.add_option("--labels", labels, "Write a uint8 mask (1/0) of these labels, e.g. \"2,41\" or \"2-5\"");
   tool.app.add_option("--merge", merge, "Relabel before anything else: \"1,2:1 3,4:2\" maps 1,2 to 1 and 3,4 to 2");
+  bool argmax = false;
+  tool.app.add_flag("--argmax", argmax,
+                    "Input is a material set \"L1=a.nrrd,L2=+b.nrrd,...\" (see tetlabel --materials; +: positive "
+                    "inside): write the label map of the material with the largest indicator at each voxel node "
+                    "(int32, the first volume's grid)");
+  std::size_t min_voxels = 0;
+  tool.app.add_option("--min-voxels", min_voxels,
+                      "After --merge: drop labels with fewer than N voxels; their voxels join the most common "
+                      "neighbouring label (0 = keep all)")
+      ->capture_default_str();
   tool.app.add_flag("--allow-nonfinite", allow_nonfinite, "Copy NaN/Inf voxels instead of refusing the input");
   tool.app.add_option("--type", type, "Convert the voxel type: uint8 int8 uint16 int16 uint32 int32 float double");
 
@@ -100,7 +111,23 @@ int main(int argc, char** argv) {
       throw pm::UsageError("output " + pm::quote(out) +
                            ": unknown volume extension; expected .nrrd .nhdr .vdb .mha .mhd .nii .nii.gz .inr .inr.gz");
     pm::Volume v;
-    if (sdf) {
+    if (argmax) {
+      const pm::MaterialSet ms = pm::load_materials(in, pm::KernelType::catmull_rom);
+      // The grid of the first volume named in the spec.
+      std::string first = in.substr(in.find('=') + 1);
+      first = first.substr(0, first.find(','));
+      first.erase(0, first.find_first_not_of(" \t+"));
+      first.erase(first.find_last_not_of(" \t") + 1);
+      const pm::Volume g = pm::read_volume(first);
+      v = pm::Volume(pm::VoxelType::i32, g.dims(), g.geometry());
+      std::int32_t* o = v.data<std::int32_t>();
+      const pm::Dims& d = g.dims();
+      for (std::size_t k = 0; k < d.nz; ++k)
+        for (std::size_t j = 0; j < d.ny; ++j)
+          for (std::size_t i = 0; i < d.nx; ++i)
+            o[v.index(i, j, k)] = ms.label_at(g.geometry().index_to_world(pm::Vec3(double(i), double(j), double(k))));
+      st["parameters"] = {{"argmax", in}};
+    } else if (sdf) {
       if (!(sp.voxel > 0)) throw pm::UsageError("--sdf needs --voxel V with V > 0 (world units)");
       const pm::Mesh m = pm::read_mesh(in);
       pm::ScopedStage stage("sdf");
@@ -119,6 +146,20 @@ int main(int argc, char** argv) {
         const auto rules = pm::parse_merge_spec(merge);
         pm::require_labels(v, pm::quote(in));
         v = pm::merge_labels(v, rules);
+      }
+      if (min_voxels > 0) {
+        pm::require_labels(v, pm::quote(in));
+        std::vector<std::int64_t> dropped;
+        try {
+          v = pm::drop_small_labels(v, min_voxels, &dropped);
+        } catch (const pm::InputError& e) {
+          throw pm::InputError(pm::quote(in) + ": " + e.what());
+        }
+        std::string list;
+        for (auto l : dropped) list += " " + std::to_string(l);
+        if (!dropped.empty()) pm::info("dropped " + std::to_string(dropped.size()) + " label(s) below " +
+                                       std::to_string(min_voxels) + " voxels:" + list);
+        st["dropped_labels"] = dropped;
       }
       if (!labels.empty()) v = pm::label_mask(v, pm::parse_label_list(labels), pm::quote(in));
       if (thr->count() > 0 && dist->count() > 0) throw pm::UsageError("give only one of --threshold and --distance");

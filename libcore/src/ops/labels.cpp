@@ -158,4 +158,66 @@ Volume merge_labels(const Volume& v, const std::vector<MergeRule>& rules) {
   return out;
 }
 
+Volume drop_small_labels(const Volume& v, std::size_t min_voxels, std::vector<std::int64_t>* dropped) {
+  const auto counts = label_counts(v, std::size_t(1) << 24);
+  std::set<std::int64_t> drop;
+  for (const auto& [l, c] : counts)
+    if (c < min_voxels) drop.insert(l);
+  if (drop.size() == counts.size())
+    throw InputError("drop_small_labels: every label has fewer than " + std::to_string(min_voxels) +
+                     " voxels; expected at least one label to keep");
+  if (dropped) dropped->insert(dropped->end(), drop.begin(), drop.end());
+  Volume out = v;
+  if (drop.empty()) return out;
+  const Dims& d = v.dims();
+  const std::size_t n = v.count();
+  std::vector<std::int64_t> lab(n);
+  std::vector<std::uint8_t> open(n);
+  std::vector<std::size_t> todo;
+  for (std::size_t c = 0; c < n; ++c) {
+    lab[c] = std::int64_t(v.get(c));
+    if (drop.count(lab[c])) {
+      open[c] = 1;
+      todo.push_back(c);
+    }
+  }
+  // Grow the kept labels into the dropped voxels, one face layer at a time.
+  while (!todo.empty()) {
+    std::vector<std::pair<std::size_t, std::int64_t>> decided;
+    std::vector<std::size_t> rest;
+    for (std::size_t c : todo) {
+      const std::size_t i = c % d.nx, j = (c / d.nx) % d.ny, k = c / (d.nx * d.ny);
+      std::map<std::int64_t, int> votes;
+      auto vote = [&](std::size_t q) {
+        if (!open[q]) ++votes[lab[q]];
+      };
+      if (i > 0) vote(c - 1);
+      if (i + 1 < d.nx) vote(c + 1);
+      if (j > 0) vote(c - d.nx);
+      if (j + 1 < d.ny) vote(c + d.nx);
+      if (k > 0) vote(c - d.nx * d.ny);
+      if (k + 1 < d.nz) vote(c + d.nx * d.ny);
+      if (votes.empty()) {
+        rest.push_back(c);
+        continue;
+      }
+      std::int64_t best = votes.begin()->first;
+      int bn = 0;
+      for (const auto& [l, nv] : votes)
+        if (nv > bn) {
+          best = l;
+          bn = nv;
+        }
+      decided.emplace_back(c, best);
+    }
+    for (const auto& [c, l] : decided) {
+      lab[c] = l;
+      open[c] = 0;
+      out.set(c, double(l));
+    }
+    todo.swap(rest);
+  }
+  return out;
+}
+
 }  // namespace pm

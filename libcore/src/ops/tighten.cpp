@@ -7,6 +7,7 @@
 #include <cfloat>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <optional>
 #include <set>
 #include <sstream>
@@ -145,6 +146,7 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
     pad = std::max(pad, margin - long(lo[a]));
     pad = std::max(pad, long(hi[a]) + margin - (long(n0[a]) - 1));
   }
+  if (p.pad >= 0) pad = p.pad;
   res.pad = std::size_t(std::max(0L, pad));
   const std::size_t P = res.pad;
   const Dims pd{n0.nx + 2 * P, n0.ny + 2 * P, n0.nz + 2 * P};
@@ -320,6 +322,82 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
         }
   }
   return res;
+}
+
+void tighten_labels(const Volume& lv, const TightenParams& p,
+                    const std::function<void(int, TightenResult&&)>& sink) {
+  if (!(p.radius > 0))
+    throw UsageError("tighten: radius " + std::to_string(p.radius) + " is invalid; expected > 0 (world units)");
+  if (p.upsample < 1 || p.upsample > 8)
+    throw UsageError("tighten: upsample " + std::to_string(p.upsample) + " is invalid; expected 1 to 8");
+  const Dims& n0 = lv.dims();
+  std::vector<int> lab(lv.count());
+  std::map<int, std::size_t> counts;
+  for (std::size_t c = 0; c < lv.count(); ++c) {
+    const double v = lv.get(c);
+    if (!std::isfinite(v) || v != std::floor(v) || std::fabs(v) > 2147483647.0) {
+      std::ostringstream m;
+      m << "tighten: voxel (" << c % n0.nx << "," << (c / n0.nx) % n0.ny << "," << c / (n0.nx * n0.ny) << ") is "
+        << v << "; expected a label map with integer values";
+      throw InputError(m.str());
+    }
+    lab[c] = int(v);
+    ++counts[lab[c]];
+  }
+  if (counts.size() < 2)
+    throw InputError("tighten: the label map has only one label (" + std::to_string(counts.begin()->first) +
+                     "); expected at least 2 materials");
+  const Geometry& g0 = lv.geometry();
+  long P = 0;
+  for (int a = 0; a < 3; ++a) P = std::max(P, long(std::ceil(p.radius / g0.spacing(a))) + 3);
+  const Dims pd{n0.nx + 2 * P, n0.ny + 2 * P, n0.nz + 2 * P};
+  Geometry gp = g0;
+  gp.origin = g0.index_to_world(Vec3(-double(P), -double(P), -double(P)));
+  auto clampi = [](long i, std::size_t n) { return std::size_t(std::min(std::max(i, 0L), long(n) - 1)); };
+  std::vector<int> padded(pd.count());
+  for (std::size_t k = 0; k < pd.nz; ++k)
+    for (std::size_t j = 0; j < pd.ny; ++j)
+      for (std::size_t i = 0; i < pd.nx; ++i)
+        padded[i + pd.nx * (j + pd.ny * k)] =
+            lab[clampi(long(i) - P, n0.nx) + n0.nx * (clampi(long(j) - P, n0.ny) + n0.ny * clampi(long(k) - P, n0.nz))];
+  std::vector<int>().swap(lab);
+  TightenParams q = p;
+  q.pad = 0;
+  const std::size_t K = std::size_t(p.upsample), off = std::size_t(P) * K;
+  const Dims od{(n0.nx - 1) * K + 1, (n0.ny - 1) * K + 1, (n0.nz - 1) * K + 1};
+  Geometry go = g0;
+  go.directions = g0.directions * (1.0 / double(K));
+  Volume mask(VoxelType::u8, pd, gp);
+  std::uint8_t* m = mask.data<std::uint8_t>();
+  for (const auto& [label, n] : counts) {
+    (void)n;
+    for (std::size_t c = 0; c < padded.size(); ++c) m[c] = padded[c] == label ? 1 : 0;
+    TightenResult r;
+    try {
+      r = tighten(mask, q);
+    } catch (const InputError& e) {
+      throw InputError("label " + std::to_string(label) + ": " + e.what());
+    }
+    // Crop the padded, upsampled grid back to the label map's extent.
+    auto crop = [&](const Volume& full) {
+      if (full.empty()) return Volume();
+      const Dims& fd = full.dims();
+      Volume o(VoxelType::f32, od, go);
+      const float* src = full.data<float>();
+      float* dst = o.data<float>();
+      for (std::size_t k = 0; k < od.nz; ++k)
+        for (std::size_t j = 0; j < od.ny; ++j)
+          for (std::size_t i = 0; i < od.nx; ++i)
+            dst[i + od.nx * (j + od.ny * k)] = src[(i + off) + fd.nx * ((j + off) + fd.ny * (k + off))];
+      return o;
+    };
+    r.distance = crop(r.distance);
+    if (p.keep_mortar) {
+      r.round = crop(r.round);
+      r.fillet = crop(r.fillet);
+    }
+    sink(label, std::move(r));
+  }
 }
 
 }  // namespace pm

@@ -34,6 +34,13 @@ Volume label_mask(const Volume& labels, const std::vector<std::int64_t>& which, 
 /// input voxel type unless a target does not fit it (then int32).
 Volume merge_labels(const Volume& labels, const std::vector<MergeRule>& rules);
 
+/// Drop labels with fewer than `min_voxels` voxels (stray labels): each of
+/// their voxels takes the most common kept label among its face neighbours,
+/// growing inward from the kept regions (ties: the smallest label). Labels
+/// dropped are appended to `dropped` when given. The voxel type is kept.
+/// \throw InputError for non-integer values or when no label has min_voxels voxels.
+Volume drop_small_labels(const Volume& labels, std::size_t min_voxels, std::vector<std::int64_t>* dropped = nullptr);
+
 /// Voxel count per label value. \throw InputError for more than `max_labels`
 /// distinct values (a grey-level volume, not a label map).
 std::map<std::int64_t, std::size_t> label_counts(const Volume& labels, std::size_t max_labels = 65536);

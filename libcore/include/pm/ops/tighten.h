@@ -19,6 +19,7 @@
 // `positive_inside` to negate the output.
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -42,6 +43,11 @@ struct TightenParams {
   int reinit_every = 25;
   bool positive_inside = false;  ///< negate the output (Chapter 6 indicators)
   bool keep_mortar = false;      ///< also return the round and fillet distances
+  /// Outside voxels added on every side before tightening: -1 = as many as
+  /// the closing needs (r + 3 voxels beyond the mask), >= 0 = exactly this
+  /// many (a mask touching the border is then cut off there; tighten_labels
+  /// pads the label map itself instead).
+  int pad = -1;
 };
 
 struct TightenResult {
@@ -75,5 +81,18 @@ std::vector<std::uint8_t> binary_mask_inside(const Volume& mask, const std::stri
 /// InputError for a mask that is not binary, an empty mask, non-orthogonal
 /// axes, or a grid that would exceed 2^31 nodes.
 TightenResult tighten(const Volume& mask, const TightenParams& p);
+
+/// Chapter 6 per-material tightening of a label map: every label present
+/// (label 0 included) is tightened as its own mask with radius p.radius, on
+/// the label map's grid upsampled p.upsample times (spacing h/K, (n-1)K+1
+/// nodes per axis, same origin), so all outputs share one grid. To keep the
+/// volume border from acting as an interface, the label map is first padded
+/// by r + 3 voxels replicating its border labels, and the results are cropped
+/// back. `sink(label, result)` receives each label's result in increasing
+/// label order (result.pad is 0; result.distance is negative inside unless
+/// p.positive_inside). 	hrow InputError for a label map with non-integer
+/// values or fewer than 2 labels; as tighten() otherwise.
+void tighten_labels(const Volume& labels, const TightenParams& p,
+                    const std::function<void(int label, TightenResult&& result)>& sink);
 
 }  // namespace pm

@@ -1,0 +1,139 @@
+#include "pm/field/materials.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "pm/base/error.h"
+#include "pm/io/volume_io.h"
+#include "test_util.h"
+
+namespace pm {
+namespace {
+
+// 24^3 unit grid: label 1 for x < 11.5, label 2 for x > 11.5, and a 6^3 cube
+// of label 5 at voxels 14..19 in every axis (inside label 2's half).
+Volume three_labels(VoxelType t = VoxelType::u8) {
+  Volume v(t, Dims{24, 24, 24});
+  for (std::size_t k = 0; k < 24; ++k)
+    for (std::size_t j = 0; j < 24; ++j)
+      for (std::size_t i = 0; i < 24; ++i) {
+        int l = i < 12 ? 1 : 2;
+        if (i >= 14 && i <= 19 && j >= 14 && j <= 19 && k >= 14 && k <= 19) l = 5;
+        v.set(i, j, k, l);
+      }
+  return v;
+}
+
+// Plane signed distance d = s * (x - x0) on a 16^3 grid with spacing h.
+Volume plane(double x0, double s, double h = 0.5, Vec3 origin = {}) {
+  Volume v(VoxelType::f32, Dims{16, 16, 16}, Geometry::with_spacing(h, h, h, origin));
+  for (std::size_t k = 0; k < 16; ++k)
+    for (std::size_t j = 0; j < 16; ++j)
+      for (std::size_t i = 0; i < 16; ++i) v.set(i, j, k, s * (origin.x + h * double(i) - x0));
+  return v;
+}
+
+TEST(Materials, FromLabelMap) {
+  const MaterialSet ms = materials_from_labels(three_labels());
+  ASSERT_EQ(ms.size(), 3u);
+  EXPECT_EQ(ms.labels, (std::vector<int>{1, 2, 5}));
+  EXPECT_EQ(ms.index_of(5), 2u);
+  EXPECT_EQ(ms.index_of(7), 3u);
+  EXPECT_DOUBLE_EQ(ms.resolution(), 1.0);
+  // Every voxel node is labelled by its own voxel: the mask surfaces lie
+  // halfway between nodes (level 0.5 of the trilinear mask, which bevels
+  // edges), so a node is at least 0.5/sqrt(2) = 0.354 from every surface:
+  // the own indicator is >= +0.354 and every other one <= -0.354 there.
+  const Volume lv = three_labels();
+  double f[3];
+  for (std::size_t k = 0; k < 24; k += 1)
+    for (std::size_t j = 0; j < 24; j += 3)
+      for (std::size_t i = 0; i < 24; i += 1) {
+        const Vec3 p{double(i), double(j), double(k)};
+        const int want = int(lv.get(i, j, k));
+        ASSERT_EQ(ms.label_at(p), want) << i << "," << j << "," << k;
+        ms.indicators(p, f);
+        for (std::size_t m = 0; m < 3; ++m) {
+          if (ms.labels[m] == want) EXPECT_GE(f[m], 0.354 - 0.03);
+          else EXPECT_LE(f[m], -0.354 + 0.03);
+        }
+      }
+  // The 1|2 interface lies at x = 11.5: the two indicators agree there within
+  // the distance transform's error (0.12 voxel) and Catmull-Rom's.
+  ms.indicators({11.5, 6.0, 6.0}, f);
+  EXPECT_NEAR(f[0], 0.0, 0.15);
+  EXPECT_NEAR(f[1], 0.0, 0.15);
+  EXPECT_EQ(ms.label_at({11.3, 6, 6}), 1);
+  EXPECT_EQ(ms.label_at({11.7, 6, 6}), 2);
+}
+
+TEST(Materials, FromVolumesAndSigns) {
+  const std::string dir = test::temp_dir();
+  // material 3 is x < 3 (negative inside), material 4 is x > 3 given as an
+  // indicator POSITIVE inside ("+path").
+  write_volume(plane(3.0, 1.0), dir + "/a.nrrd");
+  write_volume(plane(3.0, 1.0), dir + "/b.nrrd");  // positive for x > 3
+  const MaterialSet ms = load_materials("3=" + dir + "/a.nrrd, 4=+" + dir + "/b.nrrd", KernelType::catmull_rom);
+  ASSERT_EQ(ms.size(), 2u);
+  EXPECT_EQ(ms.labels, (std::vector<int>{3, 4}));
+  double f[2];
+  ms.indicators({1.0, 2.0, 2.0}, f);
+  EXPECT_NEAR(f[0], 2.0, 1e-5);   // -d = 3 - x
+  EXPECT_NEAR(f[1], -2.0, 1e-5);  // +(x - 3)
+  EXPECT_EQ(ms.label_at({2.9, 1, 1}), 3);
+  EXPECT_EQ(ms.label_at({3.1, 1, 1}), 4);
+  // Tie at x = 3 exactly: smallest index.
+  EXPECT_EQ(ms.argmax({3.0, 1, 1}), 0u);
+  const Box d = ms.domain();
+  EXPECT_NEAR(d.hi.x, 7.5, 1e-12);
+  EXPECT_NEAR(ms.resolution(), 0.5, 1e-12);
+  // Derivatives of a '+' field are negated too.
+  Vec3 g;
+  ms.fields[1]->value_gradient({2.0, 2.0, 2.0}, g);
+  EXPECT_NEAR(g.x, -1.0, 1e-5);
+}
+
+TEST(Materials, Errors) {
+  const std::string dir = test::temp_dir();
+  write_volume(plane(3.0, 1.0), dir + "/a.nrrd");
+  write_volume(plane(3.0, -1.0), dir + "/b.nrrd");
+  write_volume(plane(3.0, 1.0, 0.6), dir + "/spacing.nrrd");
+  write_volume(plane(3.0, 1.0, 0.5, {1, 0, 0}), dir + "/origin.nrrd");
+  const std::string a = dir + "/a.nrrd", b = dir + "/b.nrrd";
+  EXPECT_THROW(load_materials("1=" + a), InputError);                      // fewer than 2
+  EXPECT_THROW(load_materials("1=" + a + ",1=" + b), InputError);          // duplicate label
+  EXPECT_THROW(load_materials("1=" + a + ",2=" + dir + "/spacing.nrrd"), InputError);
+  EXPECT_THROW(load_materials("1=" + a + ",2=" + dir + "/origin.nrrd"), InputError);
+  EXPECT_THROW(load_materials("x=" + a + ",2=" + b), UsageError);
+  EXPECT_THROW(load_materials("1=" + a + ",,2=" + b), UsageError);
+  EXPECT_THROW(load_materials(a + "," + b), UsageError);
+  EXPECT_THROW(load_materials(""), UsageError);
+  EXPECT_THROW(load_materials("1=" + dir + "/missing.nrrd,2=" + b), IoError);
+  try {
+    load_materials("1=" + a + ",2=" + dir + "/spacing.nrrd");
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("spacing.nrrd"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("same grid"), std::string::npos) << e.what();
+  }
+  // Label maps: one label, non-integer values, too many labels.
+  Volume one(VoxelType::u8, Dims{4, 4, 4});
+  EXPECT_THROW(materials_from_labels(one), InputError);
+  Volume frac = three_labels(VoxelType::f32);
+  frac.set(3, 3, 3, 1.5);
+  try {
+    materials_from_labels(frac);
+    ADD_FAILURE() << "non-integer label map accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("(3,3,3) is 1.5"), std::string::npos) << e.what();
+  }
+  Volume many(VoxelType::u16, Dims{20, 20, 20});
+  for (std::size_t c = 0; c < many.count(); ++c) many.set(c, double(c % 1000));
+  EXPECT_THROW(materials_from_labels(many), InputError);
+  // Float label maps with integral values are fine.
+  EXPECT_EQ(materials_from_labels(three_labels(VoxelType::f32)).size(), 3u);
+}
+
+}  // namespace
+}  // namespace pm

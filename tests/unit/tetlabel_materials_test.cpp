@@ -1,0 +1,158 @@
+#include "pm/ops/tetlabel_materials.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+#include <set>
+
+#include "pm/base/error.h"
+#include "pm/ops/meshstats_materials.h"
+
+namespace pm {
+namespace {
+
+// Analytic distance-like field given by a function (negative inside).
+class FnField : public ScalarField {
+ public:
+  explicit FnField(std::function<double(const Vec3&)> f) : f_(std::move(f)) {}
+  double value(const Vec3& x) const override { return f_(x); }
+  double value_gradient(const Vec3& x, Vec3& g) const override {
+    const double e = 1e-6;
+    for (int a = 0; a < 3; ++a) {
+      Vec3 p = x, q = x;
+      p[a] += e;
+      q[a] -= e;
+      g[a] = (f_(p) - f_(q)) / (2 * e);
+    }
+    return f_(x);
+  }
+  double evaluate(const Vec3& x, Vec3& g, Mat3& h) const override {
+    h = Mat3();
+    return value_gradient(x, g);
+  }
+  Box domain() const override { return Box{{-2, -2, -2}, {2, 2, 2}}; }
+  double resolution() const override { return 0.05; }
+  std::string describe() const override { return "fn"; }
+
+ private:
+  std::function<double(const Vec3&)> f_;
+};
+
+// Background 1 around a unit ball split by the plane x = 0 into material 2
+// (x < 0) and 3 (x > 0): two 2-junction surfaces per half, one triple circle.
+MaterialSet split_ball() {
+  MaterialSet ms;
+  auto ball = [](const Vec3& p) { return norm(p) - 1.0; };
+  ms.labels = {1, 2, 3};
+  ms.fields.push_back(std::make_shared<FnField>([=](const Vec3& p) { return -ball(p); }));
+  ms.fields.push_back(std::make_shared<FnField>([=](const Vec3& p) { return std::max(ball(p), p.x); }));
+  ms.fields.push_back(std::make_shared<FnField>([=](const Vec3& p) { return std::max(ball(p), -p.x); }));
+  return ms;
+}
+
+// Particles on the interfaces, spacing about s: the triple circle, the sphere
+// away from it, and the disk x = 0 inside it (hexagonal grid).
+std::vector<Vec3> split_ball_points(double s) {
+  std::vector<Vec3> pts;
+  const double pi = std::acos(-1.0);
+  const int nc = int(std::round(2 * pi / s));
+  for (int i = 0; i < nc; ++i) pts.push_back({0, std::cos(2 * pi * i / nc), std::sin(2 * pi * i / nc)});
+  const int ns = int(std::round(4 * pi / (s * s * std::sqrt(3.0) / 2)));
+  const double golden = pi * (3 - std::sqrt(5.0));
+  for (int i = 0; i < ns; ++i) {
+    const double x = 1 - 2 * (i + 0.5) / ns, r = std::sqrt(1 - x * x), t = golden * i;
+    if (std::fabs(x) < 0.5 * s) continue;
+    pts.push_back({x, r * std::cos(t), r * std::sin(t)});
+  }
+  for (int j = -20; j <= 20; ++j)
+    for (int i = -20; i <= 20; ++i) {
+      const double y = s * (i + 0.5 * (j & 1)), z = s * j * std::sqrt(3.0) / 2;
+      if (std::hypot(y, z) < 1 - 0.6 * s) pts.push_back({0, y, z});
+    }
+  return pts;
+}
+
+TEST(TetLabelMaterials, SplitBallIsWatertightAndShared) {
+  const MaterialSet ms = split_ball();
+  EXPECT_EQ(auto_outside_label(ms), 1);
+  TetMesh tm = delaunay(split_ball_points(0.15));
+  MaterialMeshParams p;
+  p.outside_label = 1;
+  const MaterialMeshes mm = mesh_materials(tm, ms, p);
+  EXPECT_EQ(mm.pairs, (std::vector<std::pair<int, int>>{{1, 2}, {1, 3}, {2, 3}}));
+  ASSERT_EQ(mm.surfaces.size(), 2u);  // 2 and 3 (1 is outside)
+  EXPECT_TRUE(mm.nonmanifold_materials.empty());
+  for (const auto& [l, m] : mm.surfaces) {
+    const MeshTopology t = mesh_topology(m);
+    EXPECT_TRUE(t.closed_manifold()) << "material " << l << ": " << t.boundary_edges << " boundary, "
+                                     << t.nonmanifold_edges << " non-manifold edges";
+    EXPECT_EQ(t.components, 1u);
+    EXPECT_EQ(t.genus, 0);
+  }
+  // Shared triangles: every (2,3) interface face is in both material
+  // surfaces with opposite orientation, so F2 + F3 = F(1,2) + F(1,3) + 2 F(2,3).
+  const auto& a = mm.interfaces.face_ints.at("label_a");
+  const auto& b = mm.interfaces.face_ints.at("label_b");
+  std::size_t f12 = 0, f13 = 0, f23 = 0;
+  for (std::size_t f = 0; f < a.size(); ++f) {
+    ASSERT_LT(a[f], b[f]);
+    if (a[f] == 1 && b[f] == 2) ++f12;
+    if (a[f] == 1 && b[f] == 3) ++f13;
+    if (a[f] == 2 && b[f] == 3) ++f23;
+  }
+  EXPECT_GT(f23, 50u);
+  EXPECT_EQ(mm.surfaces.at(2).faces.size(), f12 + f23);
+  EXPECT_EQ(mm.surfaces.at(3).faces.size(), f13 + f23);
+  // The interface mesh passes every multi-material check.
+  const InterfaceQuality q = interface_quality(mm.interfaces);
+  EXPECT_EQ(q.boundary_edges, 0u);
+  EXPECT_EQ(q.bad_edges, 0u);
+  EXPECT_EQ(q.self_faces, 0u);
+  EXPECT_GT(q.junction_edges, 20u);  // the triple circle, about 2 pi / 0.15 = 42 edges
+  EXPECT_LT(q.junction_edges, 80u);
+  ASSERT_EQ(q.materials.size(), 3u);
+  for (const auto& [l, mq] : q.materials) {
+    EXPECT_TRUE(mq.topology.closed_manifold()) << "material " << l;
+    EXPECT_EQ(mq.self_intersecting_pairs, 0) << "material " << l;
+  }
+  EXPECT_TRUE(check_interface_requirements(q, "watertight,manifold,labels_consistent,no_self_intersections").empty());
+  // Material 1's surface is the whole sphere: its faces are exactly (1,2) and (1,3).
+  EXPECT_EQ(q.materials.at(1).faces, f12 + f13);
+}
+
+TEST(TetLabelMaterials, InterfaceChecksFail) {
+  const MaterialSet ms = split_ball();
+  TetMesh tm = delaunay(split_ball_points(0.2));
+  MaterialMeshParams p;
+  p.outside_label = 1;
+  MaterialMeshes mm = mesh_materials(tm, ms, p);
+  Mesh m = mm.interfaces;
+  // A hole: drop one face. A face separating a label from itself: relabel one.
+  m.faces.pop_back();
+  for (auto& [name, v] : m.face_ints) v.pop_back();
+  m.face_ints["label_b"][0] = m.face_ints["label_a"][0];
+  const InterfaceQuality q = interface_quality(m);
+  EXPECT_EQ(q.boundary_edges, 3u);
+  EXPECT_EQ(q.self_faces, 1u);
+  EXPECT_GE(q.bad_edges, 3u);
+  const auto failed = check_interface_requirements(q, "watertight,labels_consistent,manifold,rr_min>=0.0");
+  auto count = [&](const std::string& key) {
+    std::size_t n = 0;
+    for (const auto& f : failed) n += f.rfind(key, 0) == 0;
+    return n;
+  };
+  EXPECT_EQ(count("watertight"), 2u);  // the hole, and the two materials it opens
+  EXPECT_EQ(count("labels_consistent"), 1u);
+  EXPECT_GE(count("manifold"), 1u);
+  EXPECT_EQ(count("rr_min"), 0u);
+  EXPECT_THROW(check_interface_requirements(q, "frob"), UsageError);
+  Mesh plain;
+  plain.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  plain.faces = {{0, 1, 2}};
+  EXPECT_FALSE(is_interface_mesh(plain));
+  EXPECT_THROW(interface_quality(plain), InputError);
+}
+
+}  // namespace
+}  // namespace pm
