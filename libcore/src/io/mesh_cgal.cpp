@@ -7,8 +7,10 @@
 
 #include <cctype>
 #include <cstdint>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <sstream>
 
@@ -87,10 +89,75 @@ void check_off_counts(const std::string& path) {
                      " bytes can hold (truncated file or bad counts?)");
 }
 
+// CGAL's ASCII facet scanner converts each facet's vertex count from double
+// to std::size_t unchecked, undefined for a count <= -1, NaN or beyond 2^64
+// (found by fuzz_off; tests/data/regress/off-negative-facet-size*). Walk a
+// plain ASCII "OFF" file the way CGAL's scanner does (the counts as tokens,
+// then one record per line after skipping white space and # comments, the
+// first vertex record starting right after the counts) and check the first
+// number of every facet record first. Other variants (COFF, NOFF, BINARY, ...)
+// are left to CGAL.
+void check_off_facet_counts(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::size_t pos = 0;
+  const auto skip_space_and_comments = [&] {
+    for (;;) {
+      while (pos < text.size() && std::isspace(static_cast<unsigned char>(text[pos]))) ++pos;
+      if (pos < text.size() && text[pos] == '#') {
+        while (pos < text.size() && text[pos] != '\n') ++pos;
+        continue;
+      }
+      return;
+    }
+  };
+  std::string head[4];
+  for (auto& w : head) {
+    skip_space_and_comments();
+    const std::size_t b = pos;
+    while (pos < text.size() && !std::isspace(static_cast<unsigned char>(text[pos])) && text[pos] != '#') ++pos;
+    w = text.substr(b, pos - b);
+  }
+  if (head[0] != "OFF") return;
+  long long nv = 0, nf = 0;
+  try {
+    nv = std::stoll(head[1]);
+    nf = std::stoll(head[2]);
+  } catch (const std::exception&) {
+    return;
+  }
+  if (nv < 0 || nf < 0) return;
+  const auto next_record = [&](std::string& out) {
+    skip_space_and_comments();
+    if (pos >= text.size()) return false;
+    std::size_t e = text.find('\n', pos);
+    if (e == std::string::npos) e = text.size();
+    out = text.substr(pos, e - pos);
+    pos = e;
+    const auto hash = out.find('#');
+    if (hash != std::string::npos) out.erase(hash);
+    return true;
+  };
+  std::string rec;
+  for (long long k = 0; k < nv; ++k)
+    if (!next_record(rec)) return;  // truncated: CGAL reports it
+  for (long long f = 0; f < nf; ++f) {
+    if (!next_record(rec)) return;
+    std::istringstream ls(rec);
+    std::string w;
+    ls >> w;
+    const double c = std::strtod(w.c_str(), nullptr);
+    if (!(c > -1 && c < 1e18))
+      throw InputError("read_off: " + quote(path) + ": facet " + std::to_string(f) + " has vertex count " +
+                       quote(w) + "; expected an integer >= 3");
+  }
+}
+
 }  // namespace
 
 Mesh read_off(const std::string& path) {
   check_off_counts(path);
+  check_off_facet_counts(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw IoError("read_off: " + quote(path) + ": cannot open");
   std::vector<Point> pts;

@@ -90,6 +90,28 @@ void check_nifti1_header(const std::string& path, const std::string& where) {
     throw InputError(where + ": not a NIfTI-1 file (sizeof_hdr is not 348); expected a .nii or .nii.gz file");
   if (std::memcmp(h + 344, "n+1", 4) != 0)
     throw InputError(where + ": no \"n+1\" magic (ANALYZE or a .hdr/.img pair?); expected a single-file NIfTI-1");
+  // nifticlib silently turns a size <= 0 into 1 (a header saying -2 would be
+  // read as 1): refuse such sizes here, in the file's byte order.
+  const bool swap = size != 348;
+  std::int16_t dim[8];
+  for (int i = 0; i < 8; ++i) {
+    std::uint16_t u;
+    std::memcpy(&u, h + 40 + 2 * i, 2);
+    if (swap) u = std::uint16_t((u >> 8) | (u << 8));
+    std::memcpy(&dim[i], &u, 2);
+  }
+  if (dim[0] < 1 || dim[0] > 7) {
+    std::ostringstream m;
+    m << where << ": dim[0] (the number of axes) is " << dim[0] << "; expected 3 (1..7 with extra axes of size 1)";
+    throw InputError(m.str());
+  }
+  for (int i = 1; i <= dim[0]; ++i) {
+    if (dim[i] < (i <= 3 ? 1 : 0)) {  // some writers put 0 for an unused 4th axis
+      std::ostringstream m;
+      m << where << ": dim[" << i << "] is " << dim[i] << "; expected a size >= 1";
+      throw InputError(m.str());
+    }
+  }
 }
 
 }  // namespace

@@ -1,11 +1,15 @@
 #include "pm/io/vdb.h"
 
 #include <openvdb/io/File.h>
+#include <openvdb/io/Stream.h>
 #include <openvdb/math/Transform.h>
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/Dense.h>
 
+#include <fstream>
+#include <ios>
 #include <mutex>
+#include <new>
 #include <sstream>
 
 #include "pm/base/atomic_file.h"
@@ -59,31 +63,33 @@ Volume read_vdb(const std::string& path, const std::string& grid_name) {
   require_readable(path);
   ensure_openvdb_initialized();
   try {
-    openvdb::io::File file(path);
-    file.open(false);  // no delayed loading: the file may be renamed or replaced later
-    openvdb::GridPtrVecPtr meta = file.readAllGridMetadata();
-    std::string chosen;
-    bool have = false;
+    // Read through a std::istream that throws on a short read: OpenVDB's own
+    // file reader does not check its stream after reading a size field, so a
+    // truncated or corrupt file made it allocate an uninitialised size (found
+    // by fuzz_vdb; tests/data/regress/vdb-short-read). io::Stream reads the
+    // same archives io::File writes.
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw IoError(where + ": cannot open");
+    in.exceptions(std::ios::failbit | std::ios::badbit);
+    openvdb::io::Stream stream(in, /*delayLoad=*/false);
+    const openvdb::GridPtrVecPtr grids = stream.getGrids();
+    openvdb::GridBase::Ptr base;
     std::ostringstream found;
-    for (const auto& g : *meta) {
+    for (const auto& g : *grids) {
       found << (found.tellp() > 0 ? ", " : "") << quote(g->getName()) << " (" << g->type() << ")";
       const bool scalar = g->isType<openvdb::FloatGrid>() || g->isType<openvdb::DoubleGrid>();
-      if (!have && scalar && (grid_name.empty() || g->getName() == grid_name)) {
-        chosen = g->getName();
-        have = true;
-      }
+      if (!base && scalar && (grid_name.empty() || g->getName() == grid_name)) base = g;
       if (!grid_name.empty() && g->getName() == grid_name && !scalar)
         throw InputError(where + ": grid " + quote(grid_name) + " is a " + g->type() +
                          "; expected a float or double grid");
     }
-    if (!have && !grid_name.empty())
+    if (!base && !grid_name.empty())
       throw InputError(where + ": no grid named " + quote(grid_name) + "; the file has " +
-                       (meta->empty() ? std::string("no grids") : found.str()));
-    if (!have)
+                       (grids->empty() ? std::string("no grids") : found.str()));
+    if (!base)
       throw InputError(where + ": no float or double grid; the file has " +
-                       (meta->empty() ? std::string("no grids") : found.str()));
-    openvdb::GridBase::Ptr base = file.readGrid(chosen);
-    file.close();
+                       (grids->empty() ? std::string("no grids") : found.str()));
+    const std::string chosen = base->getName();
     if (auto fg = openvdb::gridPtrCast<openvdb::FloatGrid>(base))
       return dense_volume<openvdb::FloatGrid, float>(*fg, VoxelType::f32, path);
     if (auto dg = openvdb::gridPtrCast<openvdb::DoubleGrid>(base))
@@ -91,6 +97,10 @@ Volume read_vdb(const std::string& path, const std::string& grid_name) {
     throw InputError(where + ": grid " + quote(chosen) + " is not a float or double grid");
   } catch (const openvdb::Exception& e) {
     throw InputError(where + ": " + e.what());
+  } catch (const std::ios_base::failure&) {
+    throw InputError(where + ": truncated or corrupt VDB data (a read went past the end of the file)");
+  } catch (const std::bad_alloc&) {
+    throw InputError(where + ": corrupt VDB data (a size field asks for more memory than there is)");
   }
 }
 
