@@ -6,13 +6,14 @@ Real data is read from ../shared/data (cases that need it are skipped when absen
 import datetime
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
 import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-BIN = os.path.join(ROOT, "build", "bin")
+BIN = os.environ.get("PM_BENCH_BIN") or os.path.join(ROOT, "build", "bin")  # override: another build
 SHARED = os.path.normpath(os.path.join(ROOT, "..", "shared", "data"))
 rows = []
 
@@ -54,8 +55,13 @@ def particles_stats(args, threads=None):
     cmd = [os.path.join(BIN, "particles")] + args + ["--stats", "-", "-q"]
     if threads:
         cmd += ["--threads", str(threads)]
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     p, dt = run(cmd)
-    return json.loads(p.stdout), dt
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    st = json.loads(p.stdout)
+    st.update(st.get("counts", {}))  # particles, iterations, ... live under "counts"
+    st["cpu"] = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)  # on a busy machine wall >> CPU
+    return st, dt
 
 
 def case_particles():
@@ -67,47 +73,31 @@ def case_particles():
         # 492-particle sphere (Table 3.4): s from the hexagonal estimate 4π/((√3/2)s²) = 492.
         s = (4 * 3.141592653589793 / (0.8660254 * 492)) ** 0.5
         st, dt = particles_stats(["--implicit", "sphere", "--spacing", f"{s:.4f}", "-o", out])
-        row("particles", "sphere ~492 particles: time to convergence", round(dt, 3), "s", "< 0.1 s", dt < 0.1,
-            f"{st.get('particles')} particles, {st.get('iterations')} iterations")
+        relax = st["seconds"]["init"] + st["seconds"]["relax"] + st["seconds"]["population"]
+        row("particles", "sphere ~492 particles: time to convergence", round(relax, 3), "s", "< 0.1 s", relax < 0.1,
+            f"{st.get('particles')} particles, {st.get('iterations')} iterations; whole tool {dt:.3f} s wall "
+            f"(process start, output)")
         brain = os.path.join(SHARED, "iso2mesh-head", "derived", "brain.nrrd")
         if os.path.exists(brain):
-            args = ["-i", brain, "--iso", "0.5", "--spacing", "1.6", "-o", out]
+            args = ["-i", brain, "--iso", "0.5", "--spacing", "1.8", "-o", out]  # ~30k particles
             st1, dt1 = particles_stats(args, threads=1)
             st2, dt2 = particles_stats(args, threads=2)
             n = st2.get("particles", 0)
-            row("particles", "brain mask surface (1 thread)", round(dt1, 2), "s", note=f"{n} particles")
+            row("particles", "brain mask surface (1 thread)", round(dt1, 2), "s",
+                note=f"{st1.get('particles')} particles, {st1.get('cpu', 0):.1f} s CPU")
             row("particles", "brain mask surface (2 threads)", round(dt2, 2), "s", "30k particles < 10 s",
-                n >= 25000 and dt2 < 10, f"{n} particles, {st2.get('iterations')} iterations")
+                n >= 25000 and dt2 < 10, f"{n} particles, {st2.get('iterations')} iterations, "
+                f"{st2.get('cpu', 0):.1f} s CPU; 2008: 31,635 in 3.3 min")
             row("particles", "parallel speed-up, 2 threads", round(dt1 / dt2, 2), "x", ">= 1.6", dt1 / dt2 >= 1.6)
             upd = st2.get("particle_updates")
             if upd:
                 row("particles", "particle updates per second (2 threads)", round(upd / dt2 / 1e6, 2), "M/s")
-            st3, dt3 = particles_stats(["-i", brain, "--iso", "0.5", "--spacing", "0.9", "-o", out], threads=2)
+            st3, dt3 = particles_stats(["-i", brain, "--iso", "0.5", "--spacing", "1.0", "-o", out], threads=2)
             row("particles", "~100k particles on a volume surface", round(dt3, 2), "s", "< 60 s",
-                dt3 < 60, f"{st3.get('particles')} particles")
+                dt3 < 60, f"{st3.get('particles')} particles, {st3.get('iterations')} iterations, "
+                f"{st3.get('cpu', 0):.1f} s CPU")
         else:
             row("particles", "brain mask surface", None, "", note="../shared/data absent: skipped")
-
-
-def case_multiparticles():
-    exe = os.path.join(BIN, "multiparticles")
-    if not os.path.exists(exe):
-        row("multiparticles", "multiparticles", None, "", note="tool not built")
-        return
-    mickey = os.path.join(SHARED, "cleaver-mickey", "mickey.nrrd")
-    if not os.path.exists(mickey):
-        row("multiparticles", "mickey", None, "", note="../shared/data absent: skipped")
-        return
-    with tempfile.TemporaryDirectory() as tmp:
-        out = os.path.join(tmp, "m.ply")
-        for threads in (1, 2):
-            p, dt = run([exe, "--materials", mickey, "--spacing", "1.5", "-o", out, "--stats", "-", "-q",
-                         "--threads", str(threads)])
-            st = json.loads(p.stdout)
-            lv = st["levels"]
-            note = ", ".join(f"{k} {lv[k]['particles']}" for k in ("points", "curves", "surfaces"))
-            row("multiparticles", f"mickey 5 materials s=1.5 ({threads} thread{'s' if threads > 1 else ''})",
-                round(dt, 2), "s", note=note + f", surfaces {lv['surfaces']['iterations']} iterations")
 
 
 def case_ch5():
@@ -150,7 +140,100 @@ def case_ch5():
                  f"{len(c.get('size_search', []))} runs in the size search, {c['seconds']['total']:.1f} s in all")
 
 
+def case_multiparticles():
+    exe = os.path.join(BIN, "multiparticles")
+    if not os.path.exists(exe):
+        row("multiparticles", "multiparticles", None, "", note="tool not built")
+        return
+    mickey = os.path.join(SHARED, "cleaver-mickey", "mickey.nrrd")
+    if not os.path.exists(mickey):
+        row("multiparticles", "mickey", None, "", note="../shared/data absent: skipped")
+        return
+    with tempfile.TemporaryDirectory() as tmp:
+        out = os.path.join(tmp, "m.ply")
+        for threads in (1, 2):
+            p, dt = run([exe, "--materials", mickey, "--spacing", "1.5", "-o", out, "--stats", "-", "-q",
+                         "--threads", str(threads)])
+            st = json.loads(p.stdout)
+            lv = st["levels"]
+            note = ", ".join(f"{k} {lv[k]['particles']}" for k in ("points", "curves", "surfaces"))
+            row("multiparticles", f"mickey 5 materials s=1.5 ({threads} thread{'s' if threads > 1 else ''})",
+                round(dt, 2), "s", note=note + f", surfaces {lv['surfaces']['iterations']} iterations")
+
+
 CASES = {"field": case_field, "particles": case_particles, "ch5": case_ch5, "multiparticles": case_multiparticles}
+
+
+def write_test_mask_256(path):
+    """A 256^3 uint8 mask (spacing 1): an ellipsoid with a cylindrical tunnel along z and a
+    separate small sphere, so the tools see curvature, a hole and two components."""
+    n = 256
+    data = bytearray(n * n * n)
+    for k in range(n):
+        z = k - 128
+        for j in range(n):
+            y = j - 128
+            base = (k * n + j) * n
+            q = 1 - (y / 90.0) ** 2 - (z / 110.0) ** 2
+            if q > 0:
+                hw = 110.0 * q ** 0.5
+                lo, hi = max(0, int(128 - hw)), min(n, int(128 + hw) + 1)
+                data[base + lo:base + hi] = b"\x01" * (hi - lo)
+                if y * y < 30 * 30:  # tunnel x^2 + y^2 < 30^2 along z
+                    hw2 = (30 * 30 - y * y) ** 0.5
+                    lo2, hi2 = int(128 - hw2), int(128 + hw2) + 1
+                    data[base + lo2:base + hi2] = bytes(hi2 - lo2)
+            r2 = 20 * 20 - (y + 100) ** 2 - (z - 100) ** 2  # small sphere at (200, 28, 228)
+            if r2 > 0:
+                hw = r2 ** 0.5
+                lo, hi = int(200 - hw), int(200 + hw) + 1
+                data[base + lo:base + hi] = b"\x01" * (hi - lo)
+    with open(path, "wb") as f:
+        f.write(b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 256 256 256\nspace: left-posterior-superior\n"
+                b"space directions: (1,0,0) (0,1,0) (0,0,1)\nspace origin: (0,0,0)\nencoding: raw\n\n")
+        f.write(data)
+
+
+def timed_tool(args):
+    """Run a tool under /usr/bin/time: (wall seconds, peak resident MB)."""
+    with tempfile.NamedTemporaryFile(suffix=".time") as tf:
+        _, dt = run(["/usr/bin/time", "-f", "%M", "-o", tf.name] + args)
+        kb = float(open(tf.name).read().split()[-1])
+    return dt, kb / 1024
+
+
+def case_voltools():
+    """Issue 4: each volume tool on a 256^3 mask with 2 threads (< 10 s each; medial axis + sizing
+    field + gradient limiting < 20 s together), with peak memory."""
+    b = lambda t: os.path.join(BIN, t)
+    if not all(os.path.exists(b(t)) for t in ("morph", "tighten", "volconv", "medialaxis", "sizingfield",
+                                              "gradlimit", "mcinit")):
+        row("voltools", "volume tools", None, "", note="tools not built")
+        return
+    with tempfile.TemporaryDirectory() as tmp:
+        f = lambda name: os.path.join(tmp, name)
+        write_test_mask_256(f("mask.nrrd"))
+        th = ["-q", "--threads", "2"]
+        steps = [
+            ("morph open+close (ball)", [b("morph"), f("mask.nrrd"), f("morph.nrrd"), "--ops", "close:ball,open:ball"]),
+            ("tighten r = 2", [b("tighten"), f("morph.nrrd"), f("tight.nrrd"), "--radius", "2"]),
+            ("volconv --distance (mask to SDF)", [b("volconv"), f("mask.nrrd"), f("sdf.nrrd"), "--distance", "0.5"]),
+            ("medialaxis", [b("medialaxis"), f("tight.nrrd"), f("ma.ply"), "--volume", f("ma.nrrd")]),
+            ("sizingfield eps 0.5", [b("sizingfield"), "--sdf", f("tight.nrrd"), "--ma", f("ma.ply"), "-o",
+                                      f("h0.nrrd"), "--eps", "0.5"]),
+            ("gradlimit delta 0.3", [b("gradlimit"), f("h0.nrrd"), f("h.nrrd"), "--delta", "0.3"]),
+            ("mcinit", [b("mcinit"), f("tight.nrrd"), f("seeds.ply"), "--iso", "0"]),
+        ]
+        chain = 0.0
+        for name, args in steps:
+            dt, mb = timed_tool(args + th)
+            if name.split()[0] in ("medialaxis", "sizingfield", "gradlimit"):
+                chain += dt
+            row("voltools", f"{name}, 256^3 mask", round(dt, 2), "s", "< 10 s", dt < 10, f"peak {mb:.0f} MB")
+        row("voltools", "medialaxis + sizingfield + gradlimit", round(chain, 2), "s", "< 20 s", chain < 20)
+
+
+CASES["voltools"] = case_voltools
 
 
 def main():

@@ -58,6 +58,7 @@ pm_cli_test(particles.not_converged "particles: warning: not converged after 2 i
 pm_cli_test(particles.bad_kernel "particles: usage error: --kernel: cubic not in" ${PT} -i ${PTD}/onevoxel.nrrd --iso 0.1 --spacing 0.3 --kernel cubic -o /tmp/pm_p.ply)
 pm_cli_test(particles.bad_output "particles: usage error: output .*pm_p.xyz.*: expected a .ply file" ${PT} --implicit sphere --spacing 0.3 -o /tmp/pm_p.xyz)
 pm_cli_test(particles.sizing_and_spacing "particles: usage error: give --spacing or --sizing, not both" ${PT} --implicit sphere --spacing 0.3 --sizing ${PTD}/onevoxel.nrrd -o /tmp/pm_p.ply)
+pm_cli_script(particles.workflow particles_test.sh)
 # == render
 set(RD $<TARGET_FILE:render>)
 pm_cli_test(render.missing_file "render: error: .*nope.ply.*no such file" ${RD} ${D}/nope.ply -o /tmp/pm_r.png)

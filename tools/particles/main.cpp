@@ -105,6 +105,10 @@ int main(int argc, char** argv) {
                                             "marching-cubes vertices so that every component is seeded");
   tool.app.add_option("--init-count", p.init_count, "Random initial points in the field's domain")
       ->capture_default_str();
+  auto* lattice = tool.app.add_flag("--lattice-init,!--no-lattice-init", p.init_lattice,
+                                    "Without --init: start from the crossings of the surface with a lattice of "
+                                    "step 1.15 x the starting spacing instead of --init-count random points "
+                                    "(default: on for volumes, off for --implicit)");
   tool.app.add_option("--count", p.count, "Keep exactly N particles, scaling the spacing (or h) instead of "
                                           "splitting/deleting; --spacing is the starting value");
   tool.app.add_option("--kernel", kernel, "Volume reconstruction: bspline (C2, approximating), catmull-rom "
@@ -119,6 +123,10 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   tool.app.add_option("--population-tolerance", p.population_tolerance,
                       "Stop when converged and at most this fraction of particles wants to split or die (0 = none)")
+      ->capture_default_str();
+  tool.app.add_flag("--population,!--no-population", p.population_control,
+                    "Population control: split/delete particles towards the ideal energy (--no-population keeps "
+                    "the initial particles, e.g. --init-count N with --no-lattice-init)")
       ->capture_default_str();
   tool.app.add_option("--max-iters", p.max_iters, "Iteration limit per coarse-to-fine level (not converging is a "
                                                   "warning)")
@@ -140,6 +148,7 @@ int main(int argc, char** argv) {
       throw pm::UsageError("output " + pm::quote(output) + ": expected a .ply file");
     p.energy = energy == "radial" ? pm::ParticleEnergy::radial : pm::ParticleEnergy::cotangent;
     p.coarse_to_fine = ctf->count() ? coarse : !input.empty();
+    if (!lattice->count()) p.init_lattice = !input.empty();
     p.seed = tool.flags.seed;
 
     auto& st = pm::stats();
@@ -147,7 +156,9 @@ int main(int argc, char** argv) {
     st["parameters"] = {{"iso", p.iso},           {"spacing", p.spacing},         {"density", p.density},
                         {"alpha_cap", p.alpha_cap}, {"kernel", kernel},           {"energy", energy},
                         {"tolerance", p.tolerance}, {"max_iters", p.max_iters},   {"count", p.count},
-                        {"init_count", p.init_count}, {"coarse_to_fine", p.coarse_to_fine},
+                        {"init_count", p.init_count}, {"init_lattice", p.init_lattice},
+                        {"population_control", p.population_control},
+                        {"coarse_to_fine", p.coarse_to_fine},
                         {"population_tolerance", p.population_tolerance}};
     const std::unique_ptr<pm::ScalarField> field = load_field(implicit, input, kernel, p.iso);
     std::unique_ptr<pm::SizingField> sizing;

@@ -58,6 +58,8 @@ constexpr double kSizingSlack = 1.25;          // sizing: pair radius cap = 1.25
 constexpr double kSpacingSlack = 1.5;          // a move may grow the local spacing by at most this factor
 constexpr int kMaxLevels = 8;
 constexpr int kColours = 8;                    // bin colours (bx%2, by%2, bz%2), see above
+constexpr std::size_t kSerialBelow = 2000;     // sweeps of fewer particles run on one thread
+constexpr double kGatherMargin = 0.25;         // first gather covers trial moves up to 0.25 s_i
 
 // ---------------------------------------------------------------------------
 // Counter-based randomness: a hash of (seed, particle id, iteration, stream).
@@ -252,13 +254,27 @@ class Engine {
     return e;
   }
 
-  // Candidates within `reach` of x from the 3x3x3 block of `cell`, excluding self.
+  // Candidates within `reach` of x from the 3x3x3 block of `cell`, excluding
+  // self. A neighbour bin is skipped when x lies farther than reach + d_max
+  // from it along an axis: its particles were binned inside it and have
+  // moved at most d_max since, so none of them can be within reach.
   void gather(const Vec3& x, double reach, std::size_t self, std::size_t cell, std::vector<Cand>& out) const {
     out.clear();
     const double r2 = reach * reach;
     const std::int32_t* nb = &cell_nbr_[cell * 27];
+    const std::uint64_t key = cell_key_[cell];
+    const std::uint64_t ix = key % nx_, iy = (key / nx_) % ny_, iz = key / (nx_ * ny_);
+    const double slack = reach + d_max_;
+    // Per axis, bit 0/1/2 = neighbour offset -1/0/+1 may hold candidates.
+    auto axis_mask = [&](double xa, double lo, std::uint64_t i) {
+      const double c0 = lo + double(i) * cell_w_, c1 = c0 + cell_w_;
+      return (xa - slack < c0 ? 1 : 0) | 2 | (xa + slack >= c1 ? 4 : 0);
+    };
+    const int mx = axis_mask(x.x, grid_lo_.x, ix), my = axis_mask(x.y, grid_lo_.y, iy),
+              mz = axis_mask(x.z, grid_lo_.z, iz);
     for (int k = 0; k < 27; ++k) {
       if (nb[k] < 0) continue;
+      if (!((mx >> (k % 3)) & 1) || !((my >> ((k / 3) % 3)) & 1) || !((mz >> (k / 9)) & 1)) continue;
       const std::size_t c = std::size_t(nb[k]);
       for (std::uint32_t q = cell_start_[c]; q < cell_start_[c + 1]; ++q) {
         if (norm2(pos_[q] - x) >= r2 || q == self) continue;
@@ -275,7 +291,14 @@ class Engine {
     // spacing beyond kSpacingSlack s_i, which bounds their interaction radius.
     const bool varying = need_hessian_ || !curvature_mode_;
     const double spacing_cap = varying ? kSpacingSlack * P.spacing : P.spacing;
-    gather(P.x, radius_bound(spacing_cap) + P.spacing, i, cell, buf);
+    // Candidates for the current position and for trial positions within
+    // `margin` of it; a longer trial gathers again with the full step s_i.
+    // Either way every particle within interaction range of the evaluated
+    // point is in `buf`, in the same order, so the sums are the same.
+    const double radius = radius_bound(spacing_cap);
+    const double margin = kGatherMargin * P.spacing;
+    bool full_reach = false;
+    gather(P.x, radius + margin, i, cell, buf);
     Vec3 v;
     const double e0 = energy_at(P.x, P.normal, P.attr, buf, &v, nullptr);
     P.energy = e0;
@@ -290,9 +313,13 @@ class Engine {
       Vec3 x = P.x + vt * lambda;
       Eval e;
       const bool on_surface = project(x, e, kReprojectSteps, count) && norm2(x - P.x) <= step_cap2;
-      const double attr = curvature_mode_ ? (need_hessian_ ? e.attr : 0.0) : e.attr;
+      const double attr = on_surface ? (curvature_mode_ ? (need_hessian_ ? e.attr : 0.0) : e.attr) : 0.0;
       if (on_surface && (!varying || local_spacing(attr) <= spacing_cap)) {
         const Vec3 n = normalized(e.g);
+        if (!full_reach && norm2(x - P.x) > margin * margin) {
+          gather(P.x, radius + P.spacing, i, cell, buf);
+          full_reach = true;
+        }
         const double e1 = energy_at(x, n, attr, buf, nullptr, nullptr);
         if (e1 <= e0) {
           P.x = x;
@@ -334,7 +361,11 @@ class Engine {
   bool adapt_spacing();
   void split_all_into_four(std::uint64_t tag);
   bool relax_level(int level, int levels);
-  void initialise(const std::vector<Vec3>& seeds);
+  void initialise(const std::vector<Vec3>& seeds, double lattice_step);
+  // Linear-interpolated crossings of F = iso on the edges of a lattice with
+  // the given step over the domain (deterministic order).
+  std::vector<Vec3> lattice_crossings(double step);
+  int coarse_levels(double base) const;
   // Project candidate points in parallel; returns success flags and results.
   void project_many(const std::vector<Vec3>& xs, std::vector<Vec3>& out, std::vector<Eval>& evals,
                     std::vector<char>& ok);
@@ -363,6 +394,7 @@ class Engine {
   std::vector<std::uint32_t> colour_start_, colour_cells_;
   std::vector<std::uint8_t> colour_of_cell_;
   std::uint64_t nx_ = 0, ny_ = 0, nz_ = 0;
+  Vec3 grid_lo_;
 
   tbb::enumerable_thread_specific<std::vector<Cand>> tls_;
   std::atomic<std::uint64_t> evals_{0};
@@ -399,6 +431,7 @@ void Engine::rebin() {
   w = std::max(w, longest / double(1 << 20));
   cell_w_ = w;
   const Vec3 lo = bb.lo - Vec3{w, w, w};
+  grid_lo_ = lo;
   nx_ = std::uint64_t(std::floor(ext.x / w)) + 3;
   ny_ = std::uint64_t(std::floor(ext.y / w)) + 3;
   nz_ = std::uint64_t(std::floor(ext.z / w)) + 3;
@@ -512,9 +545,23 @@ void Engine::for_each_cell_parallel(Body&& body) {
 }
 
 double Engine::sweep(double& energy) {
+  // Small systems run on the calling thread: eight parallel_for rounds per
+  // sweep cost more than they save below a few thousand particles (same
+  // result either way, see the colouring argument above).
+  const bool serial = parts_.size() < kSerialBelow;
   for (int colour = 0; colour < kColours; ++colour) {
     const std::uint32_t b = colour_start_[colour], e = colour_start_[colour + 1];
     if (b == e) continue;
+    if (serial) {
+      std::vector<Cand>& buf = tls_.local();
+      std::uint64_t count = 0;
+      for (std::uint32_t k = b; k != e; ++k) {
+        const std::uint32_t c = colour_cells_[k];
+        for (std::uint32_t i = cell_start_[c]; i < cell_start_[c + 1]; ++i) update(i, c, buf, count);
+      }
+      evals_ += count;
+      continue;
+    }
     tbb::parallel_for(tbb::blocked_range<std::uint32_t>(b, e, 1), [&](const tbb::blocked_range<std::uint32_t>& r) {
       std::vector<Cand>& buf = tls_.local();
       std::uint64_t count = 0;
@@ -579,9 +626,58 @@ Vec3 tangent_offset(const Vec3& n, double angle, double dist) {
   return (t1 * std::cos(angle) + t2 * std::sin(angle)) * dist;
 }
 
-void Engine::initialise(const std::vector<Vec3>& seeds) {
+std::vector<Vec3> Engine::lattice_crossings(double step) {
+  const Vec3 lo = domain_.lo, sz = domain_.size();
+  const double longest = std::max({sz.x, sz.y, sz.z});
+  step = std::max(step, longest / 256);  // at most ~17M lattice nodes
+  const std::size_t nx = std::size_t(std::floor(sz.x / step)) + 1, ny = std::size_t(std::floor(sz.y / step)) + 1,
+                    nz = std::size_t(std::floor(sz.z / step)) + 1;
+  auto node = [&](std::size_t i, std::size_t j, std::size_t k) {
+    return lo + Vec3{double(i) * step, double(j) * step, double(k) * step};
+  };
+  std::vector<float> f(nx * ny * nz);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nz), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t k = r.begin(); k != r.end(); ++k)
+      for (std::size_t j = 0; j < ny; ++j)
+        for (std::size_t i = 0; i < nx; ++i) {
+          const double v = field_.value(node(i, j, k)) - p_.iso;
+          f[i + nx * (j + ny * k)] = std::isfinite(v) ? float(v) : 0.0f;
+        }
+    evals_ += r.size() * nx * ny;
+  });
   std::vector<Vec3> xs;
-  if (!seeds.empty()) {
+  for (std::size_t k = 0; k < nz; ++k)
+    for (std::size_t j = 0; j < ny; ++j)
+      for (std::size_t i = 0; i < nx; ++i) {
+        const float a = f[i + nx * (j + ny * k)];
+        const Vec3 x = node(i, j, k);
+        auto edge = [&](bool inside, std::size_t ii, std::size_t jj, std::size_t kk, const Vec3& dir) {
+          if (!inside) return;
+          const float b = f[ii + nx * (jj + ny * kk)];
+          if ((a < 0) == (b < 0) || a == b) return;
+          xs.push_back(x + dir * (step * double(a / (a - b))));
+        };
+        edge(i + 1 < nx, i + 1, j, k, {1, 0, 0});
+        edge(j + 1 < ny, i, j + 1, k, {0, 1, 0});
+        edge(k + 1 < nz, i, j, k + 1, {0, 0, 1});
+      }
+  return xs;
+}
+
+int Engine::coarse_levels(double base) const {
+  if (!p_.coarse_to_fine || p_.count != 0) return 0;
+  const double start = p_.coarse_start > 0 ? p_.coarse_start : 4 * field_.resolution();
+  int levels = 0;
+  while (levels < kMaxLevels && base * std::ldexp(1.0, levels + 1) <= start * (1 + 1e-9)) ++levels;
+  return levels;
+}
+
+void Engine::initialise(const std::vector<Vec3>& seeds, double lattice_step) {
+  std::vector<Vec3> xs;
+  if (seeds.empty() && lattice_step > 0) xs = lattice_crossings(lattice_step);
+  if (!xs.empty()) {
+    // lattice crossings: projected below like random points
+  } else if (!seeds.empty()) {
     for (std::size_t k = 0; k < seeds.size(); ++k)
       if (!is_finite(seeds[k]))
         throw InputError("seed point " + std::to_string(k) + " is not finite: " + fmt(seeds[k]) +
@@ -775,20 +871,26 @@ bool Engine::relax_level(int level, int levels) {
 ParticleResult Engine::run(const std::vector<Vec3>& seeds) {
   set_scale(1.0);
   Stopwatch sw;
-  initialise(seeds);
+  int levels = curvature_mode_ ? coarse_levels(p_.spacing) : 0;
+  // Lattice step ≈ 1.15 × the starting spacing: a plane crosses on average
+  // 1.5 lattice edges per step², the hexagonal packing has 1.155 per s².
+  double lattice_step = 0;
+  if (p_.init_lattice && seeds.empty()) {
+    if (curvature_mode_)
+      lattice_step = 1.15 * p_.spacing * std::ldexp(1.0, levels);
+    else
+      lattice_step = 1.15 * (p_.coarse_to_fine && p_.count == 0
+                                 ? (p_.coarse_start > 0 ? p_.coarse_start : 4 * field_.resolution())
+                                 : sizing_->min_value());
+  }
+  initialise(seeds, lattice_step);
   res_.seconds_init = sw.seconds();
 
-  int levels = 0;
-  if (p_.coarse_to_fine && p_.count == 0) {
-    const double start = p_.coarse_start > 0 ? p_.coarse_start : 4 * field_.resolution();
-    double base = p_.spacing;
-    if (!curvature_mode_) {  // the median h over the initial particles
-      std::vector<double> h(parts_.size());
-      for (std::size_t i = 0; i < h.size(); ++i) h[i] = parts_[i].attr;
-      std::nth_element(h.begin(), h.begin() + std::ptrdiff_t(h.size() / 2), h.end());
-      base = h[h.size() / 2];
-    }
-    while (levels < kMaxLevels && base * std::ldexp(1.0, levels + 1) <= start * (1 + 1e-9)) ++levels;
+  if (!curvature_mode_ && p_.coarse_to_fine && p_.count == 0) {  // the median h over the initial particles
+    std::vector<double> h(parts_.size());
+    for (std::size_t i = 0; i < h.size(); ++i) h[i] = parts_[i].attr;
+    std::nth_element(h.begin(), h.begin() + std::ptrdiff_t(h.size() / 2), h.end());
+    levels = coarse_levels(h[h.size() / 2]);
   }
   set_scale(std::ldexp(1.0, levels));
   for (Particle& q : parts_) q.spacing = local_spacing(q.attr);

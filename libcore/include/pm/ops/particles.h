@@ -53,6 +53,13 @@ struct ParticleParams {
   std::size_t count = 0;       ///< fixed particle count: scale the local spacing (s or h) instead of
                                ///< splitting/deleting (0 = off); `spacing` is then the starting value
   std::size_t init_count = 500;  ///< random initial points in the domain (when no seeds are given)
+  /// Without seeds: start from the crossings of F = iso along the edges of a
+  /// cubic lattice over the domain (step ≈ 1.15 × the starting spacing, which
+  /// gives about the hexagonal count on a plane) instead of `init_count`
+  /// random points; falls back to random points when no edge crosses. Seeds
+  /// every component larger than the step and saves the many population
+  /// doublings a few random points would need on a large surface.
+  bool init_lattice = false;
   bool coarse_to_fine = false; ///< converge with every local spacing × 2^k, split each particle into 4, halve, repeat
   double coarse_start = 0;     ///< coarse-to-fine: largest spacing, world units (0 = 4 × field resolution);
                                ///< levels k = floor(log2(coarse_start / s)), with a sizing field s = median h
