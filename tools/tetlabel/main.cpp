@@ -1,6 +1,10 @@
 // tetlabel: mesh particles by labelled Delaunay tetrahedra (TetGen): every
 // tetrahedron is inside or outside by the field at its circumcentre; the
 // faces between inside and outside form the surface.
+#include <cmath>
+#include <cstdint>
+#include <unordered_map>
+
 #include "pm/base/error.h"
 #include "pm/base/log.h"
 #include "pm/base/stats.h"
@@ -25,6 +29,42 @@ void copy_point_scalars(const pm::Mesh& pts, pm::Mesh& m) {
   }
 }
 
+// Drop particles closer than `tol` to an earlier one (TetGen refuses
+// duplicates, e.g. two seeds converged onto one quadruple point); vertex
+// scalars follow. Returns the number dropped.
+std::size_t drop_duplicates(pm::Mesh& pts, double tol) {
+  std::unordered_map<std::uint64_t, std::vector<std::size_t>> grid;
+  auto cell = [&](const pm::Vec3& p, int dx, int dy, int dz) {
+    const auto c = [&](double v, int d) { return std::uint64_t(std::int64_t(std::floor(v / tol)) + d) & 0x1fffff; };
+    return (c(p.x, dx) << 42) | (c(p.y, dy) << 21) | c(p.z, dz);
+  };
+  std::vector<std::size_t> keep;
+  for (std::size_t i = 0; i < pts.vertices.size(); ++i) {
+    bool dup = false;
+    for (int dx = -1; dx <= 1 && !dup; ++dx)
+      for (int dy = -1; dy <= 1 && !dup; ++dy)
+        for (int dz = -1; dz <= 1 && !dup; ++dz) {
+          auto it = grid.find(cell(pts.vertices[i], dx, dy, dz));
+          if (it == grid.end()) continue;
+          for (std::size_t j : it->second)
+            if (pm::norm(pts.vertices[j] - pts.vertices[i]) <= tol) dup = true;
+        }
+    if (dup) continue;
+    grid[cell(pts.vertices[i], 0, 0, 0)].push_back(i);
+    keep.push_back(i);
+  }
+  const std::size_t dropped = pts.vertices.size() - keep.size();
+  if (dropped == 0) return 0;
+  pm::Mesh out;
+  for (std::size_t i : keep) {
+    out.vertices.push_back(pts.vertices[i]);
+    if (pts.has_normals()) out.normals.push_back(pts.normals[i]);
+    for (const auto& [name, v] : pts.vertex_scalars) out.vertex_scalars[name].push_back(v[i]);
+  }
+  pts = std::move(out);
+  return dropped;
+}
+
 std::string surface_path(const std::string& spec, int label) {
   const auto pct = spec.find("%d");
   if (pct != std::string::npos) return spec.substr(0, pct) + std::to_string(label) + spec.substr(pct + 2);
@@ -32,7 +72,7 @@ std::string surface_path(const std::string& spec, int label) {
 }
 
 // Multi-material mode (--materials): interfaces, per-material surfaces, tets.
-void run_materials(const pm::Mesh& pts, const std::string& points, const pm::MaterialOptions& mo,
+void run_materials(pm::Mesh pts, const std::string& points, const pm::MaterialOptions& mo,
                    const std::string& outside_opt, bool repair, const std::string& out,
                    const std::string& surfaces, const std::string& tets) {
   auto& st = pm::stats();
@@ -49,6 +89,12 @@ void run_materials(const pm::Mesh& pts, const std::string& points, const pm::Mat
     } catch (const std::exception&) {
       throw pm::UsageError("--outside \"" + outside_opt + "\" is not an integer label or auto");
     }
+  }
+  {
+    pm::Box b;
+    for (const auto& v : pts.vertices) b.extend(v);
+    const std::size_t dup = drop_duplicates(pts, 1e-7 * std::max(pm::norm(b.size()), 1e-300));
+    if (dup > 0) pm::warn(std::to_string(dup) + " duplicate particle(s) dropped (within 1e-7 of the bounding box diagonal)");
   }
   pm::TetMesh tm;
   {
