@@ -68,6 +68,7 @@ def pipeline(args, name, src, kind, mvars, work):
             log(f"{name}: signed distance of {src}")
             run([os.path.join(args.bin, "volconv"), inp, sdf, "--sdf", "--voxel", kind[4:], "--band", "8", "-q"])
         inp = sdf
+    reused = args.reuse and os.path.exists(os.path.join(out, "quality.json"))
     if not args.reuse and os.path.isdir(out):
         shutil.rmtree(out)
     cmd = ["make", "-s", "-f", os.path.join(ROOT, "Makefile.pipeline"), "ch5", f"INPUT={inp}", f"OUT={out}",
@@ -75,7 +76,7 @@ def pipeline(args, name, src, kind, mvars, work):
     cmd += [f"{k}={v}" for k, v in mvars.items()] + args.make_vars
     log(f"{name}: ch5 pipeline -> {out}")
     _, wall = run(cmd)
-    return inp, out, wall
+    return inp, out, None if reused else wall
 
 
 # Stages of the pipeline whose --stats JSON gives their time.
@@ -232,7 +233,9 @@ def write_markdown(results, path, args):
         L += [fmt_row(r) for r in res["rows"]]
         st = res["rows"][0]["stages"]
         L += ["", "Pipeline stages (s): " + ", ".join(f"{k} {v:.1f}" for k, v in st.items()) +
-              f"; whole `make ch5` run including meshstats and renders: {res['pipeline_wall_seconds']:.1f} s."]
+              (f"; whole `make ch5` run including meshstats and renders: {res['pipeline_wall_seconds']:.1f} s."
+               if res["pipeline_wall_seconds"] is not None else
+               " (pipeline outputs reused from an earlier run: the stage times are that run's).")]
         cg = res["rows"][2]
         L += [f"CGAL facet size {cg['facet_size']:.4g} after {cg['search_runs']} Mesh_3 run(s).", ""]
         im = res["images"]
