@@ -112,11 +112,30 @@ void check_off_facet_counts(const std::string& path) {
     }
   };
   std::string head[4];
-  for (auto& w : head) {
+  for (int i = 0; i < 4; ++i) {
     skip_space_and_comments();
     const std::size_t b = pos;
     while (pos < text.size() && !std::isspace(static_cast<unsigned char>(text[pos])) && text[pos] != '#') ++pos;
-    w = text.substr(b, pos - b);
+    head[i] = text.substr(b, pos - b);
+    if (i == 1 && head[0] == "OFF" && head[1] == "BINARY") {
+      // Binary counts: three big-endian int32 after the BINARY line. CGAL
+      // casts an estimate from them to int unchecked (fuzz_off,
+      // tests/data/regress/off-binary-huge-counts): check them against the size.
+      while (pos < text.size() && text[pos] != '\n') ++pos;
+      ++pos;
+      if (pos + 12 > text.size()) return;  // truncated: CGAL reports it
+      std::int64_t c[3];
+      for (int k = 0; k < 3; ++k) {
+        const auto* u = reinterpret_cast<const unsigned char*>(text.data() + pos + 4 * k);
+        c[k] = std::int32_t(std::uint32_t(u[0]) << 24 | std::uint32_t(u[1]) << 16 | std::uint32_t(u[2]) << 8 | u[3]);
+      }
+      const std::int64_t size = std::int64_t(text.size());
+      if (c[0] < 0 || c[1] < 0 || c[2] < 0 || c[0] > size / 12 || c[1] > size / 4 || c[2] > size)
+        throw InputError("read_off: " + quote(path) + ": the binary header declares " + std::to_string(c[0]) +
+                         " vertices, " + std::to_string(c[1]) + " faces and " + std::to_string(c[2]) +
+                         " edges, impossible in a file of " + std::to_string(size) + " bytes");
+      return;
+    }
   }
   if (head[0] != "OFF") return;
   long long nv = 0, nf = 0;
@@ -127,6 +146,7 @@ void check_off_facet_counts(const std::string& path) {
     return;
   }
   if (nv < 0 || nf < 0) return;
+  if (nv > std::int64_t(text.size()) || nf > std::int64_t(text.size())) return;  // check_off_counts reports
   const auto next_record = [&](std::string& out) {
     skip_space_and_comments();
     if (pos >= text.size()) return false;
