@@ -136,7 +136,7 @@ pm_cli_test(medialaxis.mask_input "medialaxis: error: .*box_mask.nrrd.*expected 
 pm_cli_test(medialaxis.float_mask "medialaxis: error: .*onevoxel.nrrd.*got a float volume with only 2 values" ${MA} ${D}/onevoxel.nrrd /tmp/pm_ma_x.ply)
 pm_cli_test(medialaxis.no_zero_crossing "medialaxis: error: .*grey_ramp.nrrd.*no zero crossing \\(values from 0 to 63\\)" ${MA} ${D}/grey_ramp.nrrd /tmp/pm_ma_x.ply)
 pm_cli_test(medialaxis.iso_outside "medialaxis: error: .*grey_ramp.nrrd.*no voxels straddle the isovalue 100" ${MA} ${D}/grey_ramp.nrrd /tmp/pm_ma_x.ply --iso 100)
-pm_cli_test(medialaxis.bad_cos_alpha "medialaxis: usage error: medial_axis: cos_alpha 1.000000 is invalid; expected in \\(-1, 1\\)" ${MA} ${D}/grey_ramp.nrrd /tmp/pm_ma_x.ply --iso 10 --cos-alpha 1)
+pm_cli_test(medialaxis.bad_cos_alpha "medialaxis: usage error: --cos-alpha 1; expected a value in \\(-1, 1\\)" ${MA} ${D}/grey_ramp.nrrd /tmp/pm_ma_x.ply --iso 10 --cos-alpha 1)
 pm_cli_test(medialaxis.bad_side "medialaxis: usage error: --side: middle not in" ${MA} ${D}/grey_ramp.nrrd /tmp/pm_ma_x.ply --side middle)
 pm_cli_test(medialaxis.bad_output "medialaxis: usage error: output .*pm_ma_x.off.*expected a .ply file" ${MA} ${D}/grey_ramp.nrrd /tmp/pm_ma_x.off)
 pm_cli_test(medialaxis.sdf_out_without_iso "medialaxis: usage error: --sdf-out needs --iso" ${MA} ${D}/grey_ramp.nrrd /tmp/pm_ma_x.ply --sdf-out /tmp/pm_ma_x.nrrd)
