@@ -65,6 +65,17 @@ std::size_t drop_duplicates(pm::Mesh& pts, double tol) {
   return dropped;
 }
 
+// TetGen's Delaunay tetrahedralisation of the particles (a timed stage);
+// TetGen's complaints name the point file.
+pm::TetMesh delaunay_of(const std::string& points, const pm::Mesh& pts) {
+  pm::ScopedStage s("delaunay");
+  try {
+    return pm::delaunay(pts.vertices);
+  } catch (const pm::InputError& e) {
+    throw pm::InputError(pm::quote(points) + ": " + e.what());
+  }
+}
+
 std::string surface_path(const std::string& spec, int label) {
   const auto pct = spec.find("%d");
   if (pct != std::string::npos) return spec.substr(0, pct) + std::to_string(label) + spec.substr(pct + 2);
@@ -96,15 +107,7 @@ void run_materials(pm::Mesh pts, const std::string& points, const pm::MaterialOp
     const std::size_t dup = drop_duplicates(pts, 1e-7 * std::max(pm::norm(b.size()), 1e-300));
     if (dup > 0) pm::warn(std::to_string(dup) + " duplicate particle(s) dropped (within 1e-7 of the bounding box diagonal)");
   }
-  pm::TetMesh tm;
-  {
-    pm::ScopedStage s("delaunay");
-    try {
-      tm = pm::delaunay(pts.vertices);
-    } catch (const pm::InputError& e) {
-      throw pm::InputError(pm::quote(points) + ": " + e.what());
-    }
-  }
+  pm::TetMesh tm = delaunay_of(points, pts);
   pm::MaterialMeshes mm;
   {
     pm::ScopedStage s("label");
@@ -218,15 +221,7 @@ int main(int argc, char** argv) {
     if (pts.vertices.size() < 4)
       throw pm::InputError(pm::quote(points) + ": " + std::to_string(pts.vertices.size()) +
                            " points; expected at least 4 particles");
-    pm::TetMesh tm;
-    {
-      pm::ScopedStage s("delaunay");
-      try {
-        tm = pm::delaunay(pts.vertices);
-      } catch (const pm::InputError& e) {
-        throw pm::InputError(pm::quote(points) + ": " + e.what());
-      }
-    }
+    pm::TetMesh tm = delaunay_of(points, pts);
     pm::TetLabelStats ls;
     {
       pm::ScopedStage s("label");
