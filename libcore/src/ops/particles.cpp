@@ -60,6 +60,8 @@ constexpr int kMaxLevels = 8;
 constexpr int kColours = 8;                    // bin colours (bx%2, by%2, bz%2), see above
 constexpr std::size_t kSerialBelow = 2000;     // sweeps of fewer particles run on one thread
 constexpr double kGatherMargin = 0.25;         // first gather covers trial moves up to 0.25 s_i
+constexpr double kHoleRadius = 1.5;            // an anchor without a particle within 1.5 s_i is a hole
+constexpr int kMaxRefills = 4;                 // refill rounds on the final level
 
 // ---------------------------------------------------------------------------
 // Counter-based randomness: a hash of (seed, particle id, iteration, stream).
@@ -358,6 +360,17 @@ class Engine {
   // population_tolerance × N particles want to change, nothing is applied
   // and the population counts as stable. Returns whether it changed.
   bool population_control(std::uint64_t tag, bool final_check);
+  // Anchors (the projected initial points) and holes. Needs valid bins.
+  // Index of the particle nearest to anchor a among those within
+  // kHoleRadius × its local spacing with a normal on the same side and not
+  // `dead`, or -1.
+  std::int64_t anchor_cover(const Particle& a, const std::vector<char>* dead) const;
+  // Final level: add a particle at every anchor that has none near it (in
+  // anchor order, skipping anchors the added ones cover). Returns the count.
+  std::size_t refill_holes();
+  // Clear deletion marks so that no covered anchor loses its last cover.
+  void keep_anchor_covers(std::vector<char>& del, std::size_t& ndel) const;
+  std::int32_t find_cell(std::uint64_t key) const;
   bool adapt_spacing();
   void split_all_into_four(std::uint64_t tag);
   bool relax_level(int level, int levels);
@@ -381,6 +394,8 @@ class Engine {
   double r_max_ = 0, d_max_ = 0, cell_w_ = 0;
 
   std::vector<Particle> parts_, scratch_;
+  std::vector<Particle> anchors_;  // projected initial points (empty with a fixed count)
+  bool guard_anchors_ = false;     // final level: refill holes, keep anchor covers
   std::vector<Vec3> pos_;  // copy of parts_[i].x, compact for neighbour scans (valid after rebin)
   std::uint64_t next_id_ = 0;
 
@@ -501,15 +516,6 @@ void Engine::rebin() {
     while (hash_[h]) h = (h + 1) & hmask;
     hash_[h] = std::uint32_t(c + 1);
   }
-  auto lookup = [&](std::uint64_t key) -> std::int32_t {
-    std::size_t h = mix64(key) & hmask;
-    while (hash_[h]) {
-      const std::uint32_t c = hash_[h] - 1;
-      if (cell_key_[c] == key) return std::int32_t(c);
-      h = (h + 1) & hmask;
-    }
-    return -1;
-  };
   cell_nbr_.resize(nc * 27);
   colour_start_.assign(kColours + 1, 0u);
   std::vector<std::uint8_t>& colour = colour_of_cell_;
@@ -522,7 +528,7 @@ void Engine::rebin() {
       for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {
           const std::uint64_t key = (ix + dx) + nx_ * ((iy + dy) + ny_ * (iz + dz));
-          cell_nbr_[c * 27 + m++] = lookup(key);
+          cell_nbr_[c * 27 + m++] = find_cell(key);
         }
     colour[c] = std::uint8_t((ix & 1) + 2 * (iy & 1) + 4 * (iz & 1));
     ++colour_start_[colour[c] + 1];
@@ -534,6 +540,94 @@ void Engine::rebin() {
   for (std::size_t c = 0; c < nc; ++c) colour_cells_[fill[colour[c]]++] = std::uint32_t(c);
 }
 
+
+std::int32_t Engine::find_cell(std::uint64_t key) const {
+  const std::size_t hmask = hash_.size() - 1;
+  std::size_t h = mix64(key) & hmask;
+  while (hash_[h]) {
+    const std::uint32_t c = hash_[h] - 1;
+    if (cell_key_[c] == key) return std::int32_t(c);
+    h = (h + 1) & hmask;
+  }
+  return -1;
+}
+
+std::int64_t Engine::anchor_cover(const Particle& a, const std::vector<char>* dead) const {
+  const double R = kHoleRadius * local_spacing(a.attr);
+  // The grid spans the particles' box grown by one cell (width >= R), so an
+  // anchor outside it has no particle within R.
+  const Vec3 t = (a.x - grid_lo_) / cell_w_;
+  if (!(t.x >= 1 && t.y >= 1 && t.z >= 1)) return -1;
+  const std::uint64_t ix = std::uint64_t(t.x), iy = std::uint64_t(t.y), iz = std::uint64_t(t.z);
+  if (ix + 1 >= nx_ || iy + 1 >= ny_ || iz + 1 >= nz_) return -1;
+  std::int64_t best = -1;
+  double best_d2 = R * R;
+  for (int dz = -1; dz <= 1; ++dz)
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        const std::int32_t c = find_cell((ix + dx) + nx_ * ((iy + dy) + ny_ * (iz + dz)));
+        if (c < 0) continue;
+        for (std::uint32_t q = cell_start_[c]; q < cell_start_[c + 1]; ++q) {
+          const double d2 = norm2(pos_[q] - a.x);
+          if (d2 >= best_d2 || (dead && (*dead)[q]) || dot(parts_[q].normal, a.normal) <= 0) continue;
+          best_d2 = d2;
+          best = q;
+        }
+      }
+  return best;
+}
+
+std::size_t Engine::refill_holes() {
+  if (anchors_.empty()) return 0;
+  rebin();
+  const std::size_t na = anchors_.size();
+  std::vector<char> hole(na, 0);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, na, 256), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t k = r.begin(); k != r.end(); ++k) hole[k] = anchor_cover(anchors_[k], nullptr) < 0;
+  });
+  // Greedy in anchor order (deterministic): one new particle covers the
+  // anchors near it; holes are few, so a linear scan of the added ones is fine.
+  std::vector<std::size_t> added;
+  for (std::size_t k = 0; k < na; ++k) {
+    if (!hole[k]) continue;
+    const Particle& a = anchors_[k];
+    const double R = kHoleRadius * local_spacing(a.attr);
+    bool near = false;
+    for (std::size_t i : added)
+      if (norm2(parts_[i].x - a.x) < R * R && dot(parts_[i].normal, a.normal) > 0) {
+        near = true;
+        break;
+      }
+    if (near) continue;
+    Particle q = a;
+    q.spacing = local_spacing(q.attr);
+    q.lambda = std::min(kLambda0, kLambdaMaxPerS2 * q.spacing * q.spacing);
+    q.energy = q.delta = 0;
+    q.id = next_id_++;
+    added.push_back(parts_.size());
+    parts_.push_back(q);
+  }
+  res_.refilled += added.size();
+  return added.size();
+}
+
+void Engine::keep_anchor_covers(std::vector<char>& del, std::size_t& ndel) const {
+  if (!guard_anchors_ || anchors_.empty() || ndel == 0) return;
+  const std::size_t na = anchors_.size();
+  // Anchors that are covered now but would lose every cover (parallel, pure reads).
+  std::vector<char> risk(na, 0);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, na, 256), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t k = r.begin(); k != r.end(); ++k)
+      risk[k] = anchor_cover(anchors_[k], nullptr) >= 0 && anchor_cover(anchors_[k], &del) < 0;
+  });
+  // In anchor order, spare the nearest cover (which may cover later anchors too).
+  for (std::size_t k = 0; k < na; ++k) {
+    if (!risk[k] || anchor_cover(anchors_[k], &del) >= 0) continue;
+    const std::int64_t q = anchor_cover(anchors_[k], nullptr);
+    del[std::size_t(q)] = 0;
+    --ndel;
+  }
+}
 
 template <class Body>
 void Engine::for_each_cell_parallel(Body&& body) {
@@ -713,6 +807,7 @@ void Engine::initialise(const std::vector<Vec3>& seeds, double lattice_step) {
                      std::to_string(outside) + " particle(s) on F = " + fmt(p_.iso) + " lie outside its box " +
                      fmt(sizing_->bounds().lo) + " - " + fmt(sizing_->bounds().hi) + ", e.g. at " + fmt(example));
   res_.dropped_init = dropped;
+  if (!p_.count) anchors_ = parts_;
   if (parts_.empty())
     throw InputError("no surface found: none of the " + std::to_string(xs.size()) + " initial points reached F = " +
                      fmt(p_.iso) + " within " + std::to_string(kProjectSteps) + " Newton steps (" +
@@ -757,6 +852,7 @@ bool Engine::population_control(std::uint64_t tag, bool final_check) {
       kids.push_back(q.x + tangent_offset(q.normal, angle, 0.5 * q.spacing));
     }
   }
+  keep_anchor_covers(del, ndel);
   if (final_check && double(ndel + kids.size()) <= p_.population_tolerance * double(n)) return false;
   if (ndel == n) {  // never empty the system
     del[0] = 0;
@@ -835,7 +931,7 @@ bool Engine::relax_level(int level, int levels) {
   // Convergence: the exact decrease of the system energy in one sweep,
   // relative to the system energy (the sweep's sum, accurate enough as a
   // scale); not disturbed by the staleness of Gauss-Seidel energies.
-  int since = 0;
+  int since = 0, refills = 0;
   for (int it = 0; it < p_.max_iters; ++it) {
     Stopwatch sw;
     rebin();
@@ -862,7 +958,19 @@ bool Engine::relax_level(int level, int levels) {
       else if (p_.population_control)
         changed = population_control(iteration_, conv);
       res_.seconds_population += sp.seconds();
-      if (conv && !changed) return true;
+      if (conv && !changed) {
+        if (guard_anchors_ && refills < kMaxRefills) {
+          Stopwatch sr;
+          const std::size_t added = refill_holes();
+          res_.seconds_population += sr.seconds();
+          if (added > 0) {
+            ++refills;
+            debug("refilled " + std::to_string(added) + " hole(s) left by coarser levels");
+            continue;
+          }
+        }
+        return true;
+      }
     }
   }
   return false;
@@ -898,6 +1006,10 @@ ParticleResult Engine::run(const std::vector<Vec3>& seeds) {
 
   bool conv = false;
   for (int level = levels; level >= 0; --level) {
+    if (level == 0 && levels > 0) {  // from here on every anchor keeps a particle near it
+      guard_anchors_ = true;
+      refill_holes();
+    }
     conv = relax_level(level, levels + 1);
     debug("level " + std::to_string(levels - level + 1) + "/" + std::to_string(levels + 1) + ": " +
           std::to_string(parts_.size()) + " particles, " + std::to_string(res_.iterations) + " iterations so far" +

@@ -79,6 +79,9 @@ struct ParticleResult {
   bool converged = false;         ///< the last level converged with a stable population
   std::size_t splits = 0, deletions = 0;
   std::size_t dropped_init = 0;   ///< initial points / seeds whose projection failed
+  /// Particles re-inserted on the final level at initial points left without
+  /// a particle nearby (a component emptied on a coarse level; see below).
+  std::size_t refilled = 0;
   double energy_final = 0;        ///< Σ E_i at the end
   double energy_ideal = 0;        ///< N · 6 E(β)
   double mean_neighbours = 0;     ///< mean number of particles within the interaction radius
@@ -108,6 +111,12 @@ double particle_pair_energy(ParticleEnergy e, double r, double& dE_dr);
 /// count whose particle energies lie in [0.7, 1.75] E_ideal is stable: the
 /// final count lies between about 0.86 and 1.27 times the hexagonal estimate
 /// area/((√3/2) s²), depending on how the population got there.
+/// Every component the initial points reach keeps particles: the projected
+/// initial points are kept as anchors, and on the final coarse-to-fine level an anchor with
+/// no particle within 1.5 local spacings (normals on the same side) gets a
+/// particle back, and population control never deletes the last such
+/// particle of an anchor. (On coarse levels a component smaller than one
+/// particle's share, or close to a larger one, may lose all its particles.)
 /// Not converging within max_iters is not an error (result.converged).
 /// \throw UsageError when spacing <= 0 or larger than the domain's diagonal
 ///   (without sizing), density < 0, alpha_cap < 1,
