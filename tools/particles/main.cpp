@@ -53,7 +53,7 @@ void record_stats(const pm::ParticleResult& r) {
   pm::add_seconds("population", r.seconds_population);
   pm::add_seconds("finish", r.seconds_finish);
   st["counts"] = {{"particles", r.positions.size()}, {"iterations", r.iterations}, {"levels", r.levels},
-                  {"splits", r.splits}, {"deletions", r.deletions}, {"dropped_init", r.dropped_init}, {"refilled", r.refilled},
+                  {"splits", r.splits}, {"deletions", r.deletions}, {"dropped_init", r.dropped_init}, {"refilled", r.refilled}, {"list_builds", r.list_builds},
                   {"field_evaluations", r.field_evaluations}, {"particle_updates", r.particle_updates}};
   st["converged"] = r.converged;
   st["energy_final"] = r.energy_final;

@@ -60,6 +60,7 @@ constexpr int kMaxLevels = 8;
 constexpr int kColours = 8;                    // bin colours (bx%2, by%2, bz%2), see above
 constexpr std::size_t kSerialBelow = 2000;     // sweeps of fewer particles run on one thread
 constexpr double kGatherMargin = 0.25;         // first gather covers trial moves up to 0.25 s_i
+constexpr double kListSkin = 0.5;              // neighbour lists: a particle may drift 0.5 s_i before a rebuild
 constexpr double kHoleRadius = 1.5;            // an anchor without a particle within 1.5 s_i is a hole
 constexpr int kMaxRefills = 4;                 // refill rounds on the final level
 
@@ -178,6 +179,7 @@ class Engine {
     s_ = p_.spacing * scale;
     k_curv_ = p_.density * p_.spacing / (2 * kPi);
     alpha_cap_ = p_.alpha_cap * kBeta / s_;
+    lists_valid_ = false;
   }
 
   // --- field access (counted) -------------------------------------------------
@@ -286,6 +288,20 @@ class Engine {
     }
   }
 
+  // Candidates within `reach` of x from particle i's cached neighbour list
+  // (a superset of every particle that can come within reach of any trial
+  // position of i until the lists are stale, see build_lists()).
+  void gather_list(const Vec3& x, double reach, std::size_t i, std::vector<Cand>& out) const {
+    out.clear();
+    const double r2 = reach * reach;
+    for (std::uint32_t k = nbr_start_[i]; k < nbr_start_[i + 1]; ++k) {
+      const std::uint32_t q = nbr_[k];
+      if (norm2(pos_[q] - x) >= r2) continue;
+      const Particle& o = parts_[q];
+      out.push_back({o.x, o.normal, o.attr});
+    }
+  }
+
   // --- the moves (SPEC §3, adaptive step size) ------------------------------------
   void update(std::size_t i, std::size_t cell, std::vector<Cand>& buf, std::uint64_t& count) {
     Particle& P = parts_[i];
@@ -300,7 +316,8 @@ class Engine {
     const double radius = radius_bound(spacing_cap);
     const double margin = kGatherMargin * P.spacing;
     bool full_reach = false;
-    gather(P.x, radius + margin, i, cell, buf);
+    (void)cell;
+    gather_list(P.x, radius + margin, i, buf);
     Vec3 v;
     const double e0 = energy_at(P.x, P.normal, P.attr, buf, &v, nullptr);
     P.energy = e0;
@@ -319,7 +336,7 @@ class Engine {
       if (on_surface && (!varying || local_spacing(attr) <= spacing_cap)) {
         const Vec3 n = normalized(e.g);
         if (!full_reach && norm2(x - P.x) > margin * margin) {
-          gather(P.x, radius + P.spacing, i, cell, buf);
+          gather_list(P.x, radius + P.spacing, i, buf);
           full_reach = true;
         }
         const double e1 = energy_at(x, n, attr, buf, nullptr, nullptr);
@@ -346,6 +363,16 @@ class Engine {
 
   // --- bins -------------------------------------------------------------------------
   void rebin();
+  // Cached neighbour lists (SPEC §3.7), built right after rebin(): particle
+  // i lists every j within L_i = r_max + t_i + k_i + k_max of it, where t_i
+  // bounds i's trial step (its spacing, × kSpacingSlack where the spacing
+  // varies) and k = kListSkin × spacing is the drift allowed before a
+  // rebuild. Lists are rebuilt when any particle drifted farther than its k_i
+  // or its spacing outgrew t_i's assumption; then every particle within
+  // interaction range of any trial position is still listed. L_i <= the bin
+  // width, so the bin colouring still keeps parallel updates apart.
+  void build_lists();
+  bool lists_stale() const;
   // One Gauss-Seidel sweep. Returns the decrease of the system energy
   // Σ_i E_i, exactly 2 Σ_i (E_old - E_new) over the accepted moves because
   // E_ij = E_ji (α and w are symmetric); `energy` receives Σ_i E_i as seen
@@ -411,6 +438,12 @@ class Engine {
   std::uint64_t nx_ = 0, ny_ = 0, nz_ = 0;
   Vec3 grid_lo_;
 
+  // neighbour lists (CSR) and the state they were built for
+  std::vector<std::uint32_t> nbr_start_, nbr_;
+  std::vector<Vec3> list_x_;
+  std::vector<double> list_s_;
+  bool lists_valid_ = false;
+
   tbb::enumerable_thread_specific<std::vector<Cand>> tls_;
   std::atomic<std::uint64_t> evals_{0};
 
@@ -439,7 +472,10 @@ void Engine::rebin() {
     }
   }
   d_max_ = dmax;
-  double w = r_max_ + 2 * d_max_;
+  lists_valid_ = false;
+  // Wide enough for the neighbour lists' reach (see build_lists()), which
+  // also covers a plain 3x3x3 gather with one sweep of drift (r_max + 2 d_max).
+  double w = r_max_ + (kSpacingSlack + 2 * kListSkin) * d_max_;
   // Keep the grid's index space reasonable (wider bins are always correct).
   const Vec3 ext = bb.size();
   const double longest = std::max({ext.x, ext.y, ext.z, 0.0});
@@ -540,6 +576,68 @@ void Engine::rebin() {
   for (std::size_t c = 0; c < nc; ++c) colour_cells_[fill[colour[c]]++] = std::uint32_t(c);
 }
 
+
+void Engine::build_lists() {
+  const std::size_t n = parts_.size();
+  const bool varying = need_hessian_ || !curvature_mode_;
+  const double step_factor = varying ? kSpacingSlack : 1.0;
+  list_x_.resize(n);
+  list_s_.resize(n);
+  nbr_start_.assign(n + 1, 0u);
+  // Two passes over the 3x3x3 blocks (count, then fill at the prefix sums):
+  // deterministic for any schedule, one flat array.
+  auto scan = [&](std::size_t c, bool fill) {
+    const std::int32_t* nb = &cell_nbr_[c * 27];
+    for (std::uint32_t i = cell_start_[c]; i < cell_start_[c + 1]; ++i) {
+      const Particle& P = parts_[i];
+      const double reach = r_max_ + step_factor * P.spacing + kListSkin * (P.spacing + d_max_);
+      const double r2 = reach * reach;
+      std::uint32_t count = 0, at = fill ? nbr_start_[i] : 0;
+      for (int k = 0; k < 27; ++k) {
+        if (nb[k] < 0) continue;
+        const std::size_t cc = std::size_t(nb[k]);
+        for (std::uint32_t q = cell_start_[cc]; q < cell_start_[cc + 1]; ++q) {
+          if (q == i || norm2(pos_[q] - P.x) >= r2) continue;
+          if (fill)
+            nbr_[at++] = q;
+          else
+            ++count;
+        }
+      }
+      if (!fill) nbr_start_[i + 1] = count;
+    }
+  };
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cell_key_.size(), 4),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t c = r.begin(); c != r.end(); ++c) scan(c, false);
+                    });
+  for (std::size_t i = 0; i < n; ++i) nbr_start_[i + 1] += nbr_start_[i];
+  nbr_.resize(nbr_start_[n]);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cell_key_.size(), 4),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t c = r.begin(); c != r.end(); ++c) scan(c, true);
+                    });
+  for (std::size_t i = 0; i < n; ++i) {
+    list_x_[i] = parts_[i].x;
+    list_s_[i] = parts_[i].spacing;
+  }
+  lists_valid_ = true;
+  ++res_.list_builds;
+}
+
+bool Engine::lists_stale() const {
+  if (!lists_valid_ || list_x_.size() != parts_.size()) return true;
+  const bool varying = need_hessian_ || !curvature_mode_;
+  const double step_factor = varying ? kSpacingSlack : 1.0;
+  for (std::size_t i = 0; i < parts_.size(); ++i) {
+    const double k = kListSkin * list_s_[i];
+    if (norm2(pos_[i] - list_x_[i]) > k * k) return true;
+    // The trial step is capped by the current spacing: it may not outgrow
+    // the step the list allowed for (uniform spacing never changes).
+    if (varying && parts_[i].spacing > step_factor * list_s_[i]) return true;
+  }
+  return false;
+}
 
 std::int32_t Engine::find_cell(std::uint64_t key) const {
   const std::size_t hmask = hash_.size() - 1;
@@ -934,7 +1032,10 @@ bool Engine::relax_level(int level, int levels) {
   int since = 0, refills = 0;
   for (int it = 0; it < p_.max_iters; ++it) {
     Stopwatch sw;
-    rebin();
+    if (lists_stale()) {
+      rebin();
+      build_lists();
+    }
     double e = 0;
     const double change = sweep(e);
     res_.seconds_relax += sw.seconds();

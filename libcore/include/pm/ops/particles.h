@@ -89,6 +89,7 @@ struct ParticleResult {
                                   ///< field: the factor applied to h)
   std::uint64_t field_evaluations = 0;  ///< calls to F (value, gradient or Hessian)
   std::uint64_t particle_updates = 0;   ///< particle moves attempted (Σ particles over sweeps)
+  std::uint64_t list_builds = 0;        ///< neighbour-list (and bin) rebuilds, <= iterations
   /// Wall-clock seconds: initial projection; sweeps (with binning); population
   /// control, energy measurements and coarse-to-fine splits; final measurements.
   double seconds_init = 0, seconds_relax = 0, seconds_population = 0, seconds_finish = 0;
