@@ -18,6 +18,25 @@ grep -q "^Tetrahedra" "$T/s.mesh"
 "$BIN/tetlabel" "$T/t.ply" --implicit torus:R=1,r=0.4 -o "$T/t_mesh.off" -q
 "$BIN/meshstats" "$T/t_mesh.off" --implicit torus:R=1,r=0.4 --require "$Q,genus=1,components=1" -q
 
+# --improve (flips + tangential smoothing on the surface): the issue's full targets,
+# vertices still on the surface, and its statistics in --stats.
+Q5="watertight,manifold,no_self_intersections,rr_min>=0.3,rr_mean>=0.94,valence6>=0.65,valence_outside_5_7<=0.01"
+"$BIN/tetlabel" "$T/t.ply" --implicit torus:R=1,r=0.4 -o "$T/t_imp.ply" --improve 3 --stats "$T/t_imp.json" -q
+"$BIN/meshstats" "$T/t_imp.ply" --implicit torus:R=1,r=0.4 --require "$Q5,genus=1,components=1,dist_vertex_max<=1e-5" -q
+python3 - "$T/t_imp.json" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))["improve"]
+assert s["flips"] > 0 and s["moves"] > 0, s
+assert s["radius_ratio_min"][1] >= s["radius_ratio_min"][0], s
+assert s["valence6_share"][1] > s["valence6_share"][0], s
+assert s["self_intersections"][1] == 0, s
+PY
+set +e
+msg=$("$BIN/tetlabel" "$T/t.ply" --implicit torus:R=1,r=0.4 -o "$T/x.ply" --improve 3 --no-repair 2>&1); rc=$?
+set -e
+[ $rc -eq 2 ] && echo "$msg" | grep -q "usage error: --improve needs a manifold surface" || { echo "improve+no-repair: $rc $msg"; exit 1; }
+[ ! -e "$T/x.ply" ] || { echo "output left behind"; exit 1; }
+
 # A failing requirement exits 3 and names it.
 set +e
 msg=$("$BIN/meshstats" "$T/s_mesh.ply" --require "rr_min>=0.99" 2>&1); rc=$?

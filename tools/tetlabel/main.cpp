@@ -9,6 +9,7 @@
 #include "pm/base/log.h"
 #include "pm/base/stats.h"
 #include "pm/cli/field_options.h"
+#include "pm/ops/surface_improve.h"
 #include "pm/cli/material_options.h"
 #include "pm/cli/run_tool.h"
 #include "pm/io/mesh.h"
@@ -178,6 +179,7 @@ int main(int argc, char** argv) {
   std::string points, out, tets, inside = "auto", outside = "auto", surfaces;
   pm::MaterialOptions mo;
   bool repair = true;
+  int improve = 0;
   pm::FieldOptions fo;
   tool.app.add_option("points", points, "Particles (PLY, OFF, OBJ, STL vertices), world units")->required();
   pm::add_field_options(tool.app, fo);
@@ -189,6 +191,13 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"auto", "below", "above"}));
   tool.app.add_flag("--repair,!--no-repair", repair,
                     "Relabel tetrahedra at pinched vertices so the surface is a manifold (default on)");
+  tool.app.add_option("--improve", improve,
+                      "Single material: rounds of surface improvement after meshing (valence and quality edge "
+                      "flips, then tangential smoothing with every vertex projected back onto F = iso; topology "
+                      "kept, no triangle folded). 0 = the plain Delaunay surface. --tets still writes the "
+                      "Delaunay tetrahedra, whose boundary is the unimproved surface")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 100));
   tool.app.add_option("--tets", tets, "Also write the inside tetrahedra as a MEDIT .mesh");
   pm::add_material_options(tool.app, mo, false, "")
       ->excludes("--input")
@@ -215,6 +224,7 @@ int main(int argc, char** argv) {
     }
     if (!surfaces.empty() || outside != "auto")
       throw pm::UsageError("--material-surfaces and --outside need --materials");
+    if (improve > 0 && !repair) throw pm::UsageError("--improve needs a manifold surface: drop --no-repair");
     st["inputs"] = {points, fo.input.empty() ? fo.implicit : fo.input};
     const pm::LoadedField lf = pm::load_field(fo);
     const pm::Mesh pts = pm::read_mesh(points);
@@ -261,6 +271,26 @@ int main(int argc, char** argv) {
                std::to_string(t.nonmanifold_vertices) + " non-manifold vertices");
     if (buried > 0)
       pm::warn(std::to_string(buried) + " particles are not on the surface (off the isosurface, or too close)");
+    if (improve > 0) {
+      if (!t.closed_manifold())
+        throw pm::InputError(pm::quote(points) + ": --improve needs a closed manifold surface, the Delaunay surface "
+                             "is not one (see the warning above); rerun without --improve to inspect it");
+      pm::ScopedStage s("improve");
+      pm::SurfaceImproveParams ip;
+      ip.rounds = improve;
+      const pm::SurfaceImproveStats is = pm::improve_surface(surf, *lf.field, lf.iso, ip);
+      pm::info("improved: " + std::to_string(is.flips) + " flips, " + std::to_string(is.moves) +
+               " vertex moves; radius ratio min " + std::to_string(is.rr_min_before) + " -> " +
+               std::to_string(is.rr_min_after) + ", valence 6 " + std::to_string(is.valence6_before) + " -> " +
+               std::to_string(is.valence6_after));
+      st["improve"] = {{"rounds", improve}, {"flips", is.flips}, {"moves", is.moves},
+                       {"rejected_moves", is.rejected_moves},
+                       {"self_intersections", {is.self_intersections_before, is.self_intersections}},
+                       {"frozen_vertices", is.frozen},
+                       {"radius_ratio_min", {is.rr_min_before, is.rr_min_after}},
+                       {"radius_ratio_mean", {is.rr_mean_before, is.rr_mean_after}},
+                       {"valence6_share", {is.valence6_before, is.valence6_after}}};
+    }
     pm::write_mesh(surf, out);
     if (!tets.empty()) pm::write_medit(tm, 0, tets);
     pm::info(std::to_string(t.vertices) + " vertices, " + std::to_string(t.faces) + " triangles, " +

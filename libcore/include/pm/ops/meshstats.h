@@ -54,5 +54,8 @@ std::vector<std::string> check_requirements(const MeshQuality& q, const std::str
 /// Number of intersecting pairs of non-adjacent triangles (CGAL Polygon Mesh
 /// Processing); -1 when the mesh is not a manifold polygon mesh.
 int count_self_intersections(const Mesh& m);
+/// The intersecting pairs of non-adjacent triangles as face indices of `m`;
+/// false (and no pairs) when the mesh is not a manifold polygon mesh.
+bool self_intersecting_faces(const Mesh& m, std::vector<std::pair<int, int>>& out);
 
 }  // namespace pm
