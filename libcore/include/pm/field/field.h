@@ -2,6 +2,7 @@
 // The scalar-field interface shared by analytic implicits and reconstructed
 // volumes. Everything is in world units. Surfaces are level sets F = iso with
 // F < iso inside by convention (distance fields: negative inside).
+#include <cstddef>
 #include <string>
 
 #include "pm/base/vec.h"
@@ -17,6 +18,15 @@ class ScalarField {
   virtual double value_gradient(const Vec3& x, Vec3& grad) const = 0;
   /// F(x), gradient and (symmetric) Hessian.
   virtual double evaluate(const Vec3& x, Vec3& grad, Mat3& hess) const = 0;
+  /// Batch forms of value, value_gradient and evaluate at the n points
+  /// x[0..n): f[k], grad[k] and hess[k] (arrays of n) are bit for bit what
+  /// the single-point call returns for x[k]. Outputs must not overlap x.
+  /// The default loops over the single-point calls; VolumeField overlaps the
+  /// memory accesses of consecutive points (worth it from a few dozen points
+  /// on a volume larger than the caches).
+  virtual void value_batch(const Vec3* x, std::size_t n, double* f) const;
+  virtual void value_gradient_batch(const Vec3* x, std::size_t n, double* f, Vec3* grad) const;
+  virtual void evaluate_batch(const Vec3* x, std::size_t n, double* f, Vec3* grad, Mat3* hess) const;
   /// World box where the field is defined (outside it values are clamped /
   /// extrapolated and must not be relied on).
   virtual Box domain() const = 0;
