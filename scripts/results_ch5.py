@@ -111,6 +111,12 @@ def render(args, mesh, png):
     run([os.path.join(args.bin, "render"), mesh, "-o", png, "--edges", "--size", "480x360", "-q"])
 
 
+def fresh(args, path, out):
+    """With --reuse: `path` exists and is newer than the pipeline's surface (no rerun needed)."""
+    surf = os.path.join(out, "surface.ply")
+    return args.reuse and os.path.exists(path) and os.path.getmtime(path) >= os.path.getmtime(surf)
+
+
 def dataset(args, ds, work, imgdir):
     name, src, kind, mvars, desc = ds
     inp, out, wall = pipeline(args, name, src, kind, mvars, work)
@@ -120,19 +126,28 @@ def dataset(args, ds, work, imgdir):
     ours = load(os.path.join(out, "quality.json"))
     secs = stage_seconds(out)
     rows = [dict(method="particles (ch5)", seconds=sum(secs.values()), q=ours, stages=secs)]
+    # The same particles meshed without --improve: the 2008 method's surface.
+    plain = os.path.join(out, "surface_delaunay.ply")
+    if not fresh(args, plain, out):
+        run([os.path.join(args.bin, "tetlabel"), os.path.join(out, "points.ply"), "-i", field, "--iso", iso,
+             "-o", plain, "--improve", "0", "-q"])
+    rows.append(dict(method="particles, plain Delaunay (no --improve)", seconds=None, q=quality(
+        args, plain, field, iso, sizing, os.path.join(out, "delaunay_quality.json"))))
     n = ours["vertices"]
     bl = os.path.join(args.bin, "baseline")
     log(f"{name}: marching cubes")
     mc_stats = os.path.join(out, "mc.json")
-    run([bl, "mc", "-i", field, "--iso", iso, "-o", os.path.join(out, "mc.ply"), "--stats", mc_stats, "-q",
-         "--threads", str(args.threads)])
+    if not fresh(args, mc_stats, out):
+        run([bl, "mc", "-i", field, "--iso", iso, "-o", os.path.join(out, "mc.ply"), "--stats", mc_stats, "-q",
+             "--threads", str(args.threads)])
     rows.append(dict(method="marching cubes (OpenVDB)", seconds=load(mc_stats)["seconds"]["total"],
                      q=quality(args, os.path.join(out, "mc.ply"), field, iso, sizing,
                                os.path.join(out, "mc_quality.json"))))
     log(f"{name}: CGAL Mesh_3 at about {n} vertices")
     cg_stats = os.path.join(out, "cgal.json")
-    run([bl, "cgal", "-i", field, "--iso", iso, "--vertices", str(n), "-o", os.path.join(out, "cgal.ply"),
-         "--stats", cg_stats, "-q", "--threads", str(args.threads)])
+    if not fresh(args, cg_stats, out):
+        run([bl, "cgal", "-i", field, "--iso", iso, "--vertices", str(n), "-o", os.path.join(out, "cgal.ply"),
+             "--stats", cg_stats, "-q", "--threads", str(args.threads)])
     cg = load(cg_stats)
     rows.append(dict(method="CGAL Mesh_3", seconds=cg["seconds_final_run"], q=quality(
         args, os.path.join(out, "cgal.ply"), field, iso, sizing, os.path.join(out, "cgal_quality.json")),
@@ -168,7 +183,8 @@ def fmt_row(r):
     m = measures(r["q"])
     e2h = "-" if m["e2h"] is None else f"{100 * m['e2h']:.3f}"
     dist = "-" if m["dmean"] is None else f"{m['dmean']:.3g} / {m['dmax']:.3g}"
-    return (f"| {r['method']} | {r['seconds']:.1f} | {m['vertices']} | {m['rr_min']:.3f} | {m['rr_mean']:.3f} | "
+    secs = "-" if r["seconds"] is None else f"{r['seconds']:.1f}"
+    return (f"| {r['method']} | {secs} | {m['vertices']} | {m['rr_min']:.3f} | {m['rr_mean']:.3f} | "
             f"{100 * m['v6']:.1f} | {100 * m['v57']:.2f} | {e2h} | {dist} | "
             f"{yes(m['watertight'])} | {yes(m['manifold'])} | {'-' if m['si'] is None else m['si']} | "
             f"{m['genus']} ({m['components']}) |")

@@ -8,6 +8,7 @@
 
 #include "pm/base/error.h"
 #include "pm/ops/meshstats_materials.h"
+#include "pm/ops/surface_improve.h"
 
 namespace pm {
 namespace {
@@ -119,6 +120,68 @@ TEST(TetLabelMaterials, SplitBallIsWatertightAndShared) {
   EXPECT_TRUE(check_interface_requirements(q, "watertight,manifold,labels_consistent,no_self_intersections").empty());
   // Material 1's surface is the whole sphere: its faces are exactly (1,2) and (1,3).
   EXPECT_EQ(q.materials.at(1).faces, f12 + f13);
+}
+
+// improve_interfaces on the split ball: the triple circle's vertices stay,
+// every other vertex stays on its interface (|d_a - d_b| tiny), quality rises,
+// and every multi-material check still passes on the improved mesh and on the
+// material surfaces rebuilt from it.
+TEST(TetLabelMaterials, ImprovedInterfacesKeepJunctionsAndChecks) {
+  const MaterialSet ms = split_ball();
+  // Jittered points: a poorer start than the regular grids.
+  std::vector<Vec3> pts = split_ball_points(0.15);
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const double j = 0.02 * std::sin(12.9898 * double(i)), k = 0.02 * std::cos(78.233 * double(i));
+    Vec3& x = pts[i];
+    if (std::fabs(x.x) < 1e-12 && norm(x) > 0.99) continue;  // keep the triple circle exact
+    if (std::fabs(x.x) < 1e-12) x = x + Vec3{0, j, k};       // slide inside the disk x = 0
+    else x = normalized(x + Vec3{0, j, k});                  // slide on the sphere
+  }
+  TetMesh tm = delaunay(pts);
+  MaterialMeshParams p;
+  p.outside_label = 1;
+  MaterialMeshes mm = mesh_materials(tm, ms, p);
+  const Mesh before = mm.interfaces;
+  const InterfaceQuality q0 = interface_quality(before);
+  const SurfaceImproveStats st = improve_interfaces(mm.interfaces, ms);
+  const Mesh& after = mm.interfaces;
+  ASSERT_EQ(after.vertices.size(), before.vertices.size());
+  EXPECT_GT(st.moves, 0u);
+  EXPECT_GT(st.rr_mean_after, st.rr_mean_before);
+  EXPECT_GE(st.rr_min_after, st.rr_min_before);
+  const auto& la = after.face_ints.at("label_a");
+  const auto& lb = after.face_ints.at("label_b");
+  for (std::size_t f = 0; f < after.faces.size(); ++f)
+    for (int v : after.faces[f]) {
+      const Vec3& x = after.vertices[std::size_t(v)];
+      const Vec3& x0 = before.vertices[std::size_t(v)];
+      if (std::fabs(x0.x) < 1e-12 && norm(x0) > 0.99) {
+        ASSERT_EQ(x, x0) << "a triple-circle vertex moved";
+        continue;
+      }
+      Vec3 g;
+      const double da = ms.fields[ms.index_of(la[f])]->value_gradient(x, g);
+      const double db = ms.fields[ms.index_of(lb[f])]->value_gradient(x, g);
+      // Vertices on several interfaces are fixed and were on both already.
+      ASSERT_LE(std::fabs(da - db), 1e-5) << "vertex " << v << " left interface " << la[f] << "|" << lb[f];
+    }
+  const InterfaceQuality q1 = interface_quality(after);
+  EXPECT_EQ(q1.boundary_edges, 0u);
+  EXPECT_EQ(q1.bad_edges, 0u);
+  EXPECT_EQ(q1.self_faces, 0u);
+  EXPECT_EQ(q1.junction_edges, q0.junction_edges);
+  for (const auto& [l, mq] : q1.materials) {
+    EXPECT_TRUE(mq.topology.closed_manifold()) << "material " << l;
+    EXPECT_EQ(mq.self_intersecting_pairs, 0) << "material " << l;
+    EXPECT_GT(mq.rr_mean, q0.materials.at(l).rr_mean) << "material " << l;
+  }
+  for (int l : {2, 3}) {
+    const Mesh m = material_from_interfaces(after, l);
+    const MeshTopology t = mesh_topology(m);
+    EXPECT_TRUE(t.closed_manifold()) << "material " << l;
+    EXPECT_EQ(t.genus, 0);
+    EXPECT_EQ(m.faces.size(), mm.surfaces.at(l).faces.size());
+  }
 }
 
 TEST(TetLabelMaterials, InterfaceChecksFail) {

@@ -16,13 +16,18 @@ bool is_interface_mesh(const Mesh& m) {
 Mesh material_from_interfaces(const Mesh& m, int label) {
   const auto& a = m.face_ints.at("label_a");
   const auto& b = m.face_ints.at("label_b");
+  const auto index = m.vertex_scalars.find("index");
   Mesh out;
   std::vector<int> remap(m.vertices.size(), -1);
   auto vid = [&](int v) {
     if (remap[v] < 0) {
       remap[v] = int(out.vertices.size());
       out.vertices.push_back(m.vertices[v]);
-      out.vertex_scalars["index"].push_back(double(v));
+      if (m.has_normals()) out.normals.push_back(m.normals[v]);
+      for (const auto& [name, vals] : m.vertex_scalars)
+        if (name != "index") out.vertex_scalars[name].push_back(vals[std::size_t(v)]);
+      out.vertex_scalars["index"].push_back(index != m.vertex_scalars.end() ? index->second[std::size_t(v)]
+                                                                            : double(v));
     }
     return remap[v];
   };
@@ -31,6 +36,8 @@ Mesh material_from_interfaces(const Mesh& m, int label) {
     const auto& t = m.faces[f];
     if (a[f] == label) out.faces.push_back({vid(t[0]), vid(t[1]), vid(t[2])});       // normal a -> b: outward
     else if (b[f] == label) out.faces.push_back({vid(t[0]), vid(t[2]), vid(t[1])});  // flipped
+    else continue;
+    for (const auto& [name, vals] : m.face_ints) out.face_ints[name].push_back(vals[f]);
   }
   return out;
 }

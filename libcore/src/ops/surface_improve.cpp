@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
+#include <map>
 #include <cstdint>
 #include <string>
 #include <unordered_map>
@@ -38,10 +40,18 @@ std::uint64_t directed(int a, int b) { return (std::uint64_t(std::uint32_t(a)) <
 
 Vec3 face_normal(const Vec3& a, const Vec3& b, const Vec3& c) { return cross(b - a, c - a); }
 
+// What the faces sample: face f lies on the zero set of sheet group[f],
+// eval(x, group, grad) returning its value and gradient (F - iso for one
+// surface; f_a - f_b between materials a and b).
+struct Sheets {
+  std::vector<int> group;  // per face
+  std::function<double(const Vec3&, int, Vec3&)> eval;
+};
+
 class Improver {
  public:
-  Improver(Mesh& m, const ScalarField& f, double iso, const SurfaceImproveParams& p, const std::vector<char>& frozen)
-      : m_(m), f_(f), iso_(iso), p_(p), cos_fold_(std::cos(p.max_fold_deg * 3.14159265358979323846 / 180)),
+  Improver(Mesh& m, const Sheets& sh, bool single, const SurfaceImproveParams& p, const std::vector<char>& frozen)
+      : m_(m), sh_(sh), single_(single), p_(p), cos_fold_(std::cos(p.max_fold_deg * 3.14159265358979323846 / 180)),
         frozen_(frozen) {}
 
   SurfaceImproveStats run() {
@@ -59,7 +69,7 @@ class Improver {
       }
       for (int s = 0; s < p_.smoothing_steps; ++s) smooth_step();
     }
-    if (m_.has_normals()) update_normals();
+    if (single_ && m_.has_normals()) update_normals();
     measure(st_.rr_min_after, st_.rr_mean_after, st_.valence6_after);
     return st_;
   }
@@ -67,40 +77,50 @@ class Improver {
  private:
   // Half-edge h = 3f + k runs from faces[f][k] to faces[f][k+1].
   void build_opposites() {
-    const std::size_t nf = m_.faces.size();
-    std::unordered_map<std::uint64_t, int> he;
-    he.reserve(3 * nf);
+    const std::size_t nf = m_.faces.size(), nv = m_.vertices.size();
+    std::unordered_map<std::uint64_t, std::vector<int>> by_edge;  // undirected edge -> half-edges
+    by_edge.reserve(2 * nf);
     for (std::size_t f = 0; f < nf; ++f)
-      for (int k = 0; k < 3; ++k) {
-        const int a = m_.faces[f][k], b = m_.faces[f][(k + 1) % 3];
-        if (!he.emplace(directed(a, b), int(3 * f + k)).second)
-          throw InputError("improve_surface: edge (" + std::to_string(a) + ", " + std::to_string(b) +
-                           ") is used twice in the same direction; expected a consistently oriented manifold");
-      }
+      for (int k = 0; k < 3; ++k)
+        by_edge[undirected(m_.faces[f][k], m_.faces[f][(k + 1) % 3])].push_back(int(3 * f + k));
     opp_.assign(3 * nf, -1);
     edges_.clear();
-    edges_.reserve(2 * nf);
-    valence_.assign(m_.vertices.size(), 0);
+    edges_.reserve(by_edge.size());
+    valence_.assign(nv, 0);
+    fixed_.assign(nv, 0);
+    std::vector<int> vgroup(nv, -1);
     for (std::size_t f = 0; f < nf; ++f)
-      for (int k = 0; k < 3; ++k) {
-        const int a = m_.faces[f][k], b = m_.faces[f][(k + 1) % 3];
-        const auto it = he.find(directed(b, a));
-        if (it == he.end())
+      for (int v : m_.faces[f]) {
+        if (vgroup[v] == -1) vgroup[v] = sh_.group[f];
+        else if (vgroup[v] != sh_.group[f]) fixed_[v] = 1;  // on a junction between sheets
+      }
+    for (const auto& [key, hs] : by_edge) {
+      edges_.insert(key);
+      const int a = int(key & 0xffffffffu), b = int(key >> 32);
+      ++valence_[a];
+      ++valence_[b];
+      const auto from = [&](int h) { return m_.faces[std::size_t(h / 3)][h % 3]; };
+      if (hs.size() == 2 && from(hs[0]) != from(hs[1]) && sh_.group[hs[0] / 3] == sh_.group[hs[1] / 3]) {
+        opp_[hs[0]] = hs[1];
+        opp_[hs[1]] = hs[0];
+      } else {
+        fixed_[a] = fixed_[b] = 1;  // boundary, junction curve or inconsistent orientation
+        if (single_ && hs.size() == 1)
           throw InputError("improve_surface: edge (" + std::to_string(a) + ", " + std::to_string(b) +
                            ") borders one triangle; expected a closed surface");
-        opp_[3 * f + k] = it->second;
-        if (a < b) {
-          edges_.insert(undirected(a, b));
-          ++valence_[a];
-          ++valence_[b];
-        }
+        if (single_ && (hs.size() != 2 || from(hs[0]) == from(hs[1])))
+          throw InputError("improve_surface: edge (" + std::to_string(a) + ", " + std::to_string(b) + ") has " +
+                           std::to_string(hs.size()) + " triangles" +
+                           (hs.size() == 2 ? " oriented the same way" : "") +
+                           "; expected a closed, consistently oriented manifold");
       }
+    }
   }
 
   // Distance-like deviation of a point from the surface: |F - iso| / |∇F|.
-  double deviation(const Vec3& x) const {
+  double deviation(const Vec3& x, int group) const {
     Vec3 g;
-    const double v = f_.value_gradient(x, g) - iso_;
+    const double v = sh_.eval(x, group, g);
     const double gn = norm(g);
     return gn > 0 ? std::fabs(v) / gn : 1e300;
   }
@@ -111,6 +131,7 @@ class Improver {
     std::size_t flips = 0;
     auto& V = m_.vertices;
     for (std::size_t h = 0; h < 3 * nf; ++h) {
+      if (opp_[h] < 0) continue;
       const std::size_t o = std::size_t(opp_[h]);
       if (o < h) continue;
       const std::size_t f = h / 3, g = o / 3;
@@ -123,7 +144,9 @@ class Improver {
       const Vec3 &A = V[a], &B = V[b], &C = V[c], &D = V[d];
       const double rr_old = std::min(triangle_radius_ratio(A, B, C), triangle_radius_ratio(B, A, D));
       const double rr_new = std::min(triangle_radius_ratio(A, D, C), triangle_radius_ratio(B, C, D));
+      // Valence 6 is the goal on a sheet; junction vertices do not count.
       auto dev = [&](int v, int dv) {
+        if (fixed_[v]) return 0.0;
         const double x = double(valence_[v] + dv - 6);
         return x * x;
       };
@@ -137,7 +160,8 @@ class Improver {
       const Vec3 n1 = normalized(face_normal(A, D, C)), n2 = normalized(face_normal(B, C, D));
       if (!(dot(n1, n_old) >= cos_fold_ && dot(n2, n_old) >= cos_fold_ && dot(n1, n2) >= cos_fold_)) continue;
       // The new edge must follow the surface about as well as the old one.
-      const double dev_cd = deviation((C + D) * 0.5), dev_ab = deviation((A + B) * 0.5);
+      const int grp = sh_.group[f];
+      const double dev_cd = deviation((C + D) * 0.5, grp), dev_ab = deviation((A + B) * 0.5, grp);
       if (!(dev_cd <= std::max(1.5 * dev_ab, 0.02 * norm(C - D)))) continue;
       m_.faces[f] = {a, d, c};
       m_.faces[g] = {b, c, d};
@@ -155,10 +179,10 @@ class Improver {
   }
 
   // Newton projection onto F = iso; false when it does not get within tol_.
-  bool project(Vec3& x) const {
+  bool project(Vec3& x, int group) const {
     for (int s = 0; s <= p_.newton_steps; ++s) {
       Vec3 g;
-      const double v = f_.value_gradient(x, g) - iso_;
+      const double v = sh_.eval(x, group, g);
       const double gg = norm2(g);
       if (!std::isfinite(v) || !(gg > 0)) return false;
       if (std::fabs(v) / std::sqrt(gg) <= tol_) return true;
@@ -187,7 +211,8 @@ class Improver {
     std::vector<char> ok(nv, 0);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nv, 256), [&](const tbb::blocked_range<std::size_t>& r) {
       for (std::size_t v = r.begin(); v != r.end(); ++v) {
-        if (start[v] == start[v + 1] || frozen_[v] >= 2) continue;
+        if (start[v] == start[v + 1] || frozen_[v] >= 2 || fixed_[v]) continue;
+        const int grp = sh_.group[list[start[v]]];
         Vec3 sum;
         double wsum = 0;
         for (std::uint32_t q = start[v]; q < start[v + 1]; ++q) {
@@ -198,7 +223,7 @@ class Improver {
         }
         if (!(wsum > 0)) continue;
         Vec3 g;
-        f_.value_gradient(V[v], g);
+        sh_.eval(V[v], grp, g);
         const Vec3 n = normalized(g);
         Vec3 step = (sum / wsum - V[v]) * p_.smoothing;
         step -= n * dot(n, step);
@@ -206,7 +231,7 @@ class Improver {
         Vec3 x = tangent;
         // The surface departs from the tangent plane by about |step|² κ / 2;
         // a projection that travels farther went to another sheet (thin parts).
-        if (!is_finite(x) || !project(x) || norm(x - tangent) > 0.5 * norm(step) + 10 * tol_) continue;
+        if (!is_finite(x) || !project(x, grp) || norm(x - tangent) > 0.5 * norm(step) + 10 * tol_) continue;
         prop[v] = x;
         ok[v] = 1;
       }
@@ -216,7 +241,7 @@ class Improver {
     // below min(its old value, 0.5).
     for (std::size_t v = 0; v < nv; ++v) {
       if (!ok[v]) {
-        if (start[v] != start[v + 1] && frozen_[v] < 2) ++st_.rejected_moves;
+        if (start[v] != start[v + 1] && frozen_[v] < 2 && !fixed_[v]) ++st_.rejected_moves;
         continue;
       }
       const Vec3 old = V[v];
@@ -248,7 +273,7 @@ class Improver {
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, V.size(), 512), [&](const tbb::blocked_range<std::size_t>& r) {
       for (std::size_t v = r.begin(); v != r.end(); ++v) {
         Vec3 g;
-        f_.value_gradient(V[v], g);
+        sh_.eval(V[v], 0, g);
         const Vec3 n = normalized(g);
         if (is_finite(n) && norm2(n) > 0) N[v] = dot(n, N[v]) < 0 ? n * -1.0 : n;
       }
@@ -265,55 +290,80 @@ class Improver {
     }
     rr_mean = m_.faces.empty() ? 0 : sum / double(m_.faces.size());
     std::size_t used = 0, six = 0;
-    for (int val : valence_)
-      if (val > 0) {
+    for (std::size_t v = 0; v < valence_.size(); ++v)
+      if (valence_[v] > 0 && !fixed_[v]) {
         ++used;
-        six += val == 6;
+        six += valence_[v] == 6;
       }
     v6 = used ? double(six) / double(used) : 0;
   }
 
   Mesh& m_;
-  const ScalarField& f_;
-  double iso_;
+  const Sheets& sh_;
+  const bool single_;  // one closed surface (else: interfaces between materials)
   SurfaceImproveParams p_;
   double cos_fold_;
   double mean_edge_ = 1, tol_ = 0;
   std::vector<int> opp_;
   std::unordered_set<std::uint64_t> edges_;
   std::vector<int> valence_;
+  std::vector<char> fixed_;  // junction vertices (several sheets, or an edge with != 2 faces)
   const std::vector<char>& frozen_;
   SurfaceImproveStats st_;
 };
 
-}  // namespace
 
-SurfaceImproveStats improve_surface(Mesh& mesh, const ScalarField& field, double iso, const SurfaceImproveParams& p) {
-  mesh.validate("improve_surface");
-  if (p.rounds < 0 || p.smoothing_steps < 0 || !(p.smoothing >= 0 && p.smoothing <= 1))
-    throw UsageError("improve_surface: rounds and smoothing steps must be >= 0 and smoothing in [0, 1]");
-  // Flips and moves are local tests; where two sheets of the surface are
-  // closer than an edge (thin parts), they can still make triangles cross.
-  // Check with CGAL, freeze the vertices around every new crossing (and
-  // their 1-rings), and redo from the original mesh; a few rounds suffice.
+// Intersecting face pairs of `m` (indices into m.faces). One surface: the
+// mesh itself. Interfaces: each material's closed surface (faces with
+// label_a = L as they are, label_b = L reversed) in turn; a material whose
+// surface is not a manifold polygon mesh is skipped.
+std::vector<std::pair<int, int>> crossings(const Mesh& m, const std::vector<int>* materials) {
+  std::vector<std::pair<int, int>> all, pairs;
+  if (!materials) {
+    if (!self_intersecting_faces(m, pairs))
+      throw InputError("improve_surface: the improved mesh is not a manifold polygon mesh (internal error)");
+    return pairs;
+  }
+  const auto& la = m.face_ints.at("label_a");
+  const auto& lb = m.face_ints.at("label_b");
+  for (int L : *materials) {
+    Mesh sub;
+    sub.vertices = m.vertices;
+    std::vector<int> back;
+    for (std::size_t f = 0; f < m.faces.size(); ++f) {
+      if (la[f] == L) sub.faces.push_back(m.faces[f]);
+      else if (lb[f] == L) sub.faces.push_back({m.faces[f][0], m.faces[f][2], m.faces[f][1]});
+      else continue;
+      back.push_back(int(f));
+    }
+    if (sub.faces.empty() || !self_intersecting_faces(sub, pairs)) continue;
+    for (const auto& [x, y] : pairs) all.emplace_back(back[std::size_t(x)], back[std::size_t(y)]);
+  }
+  std::sort(all.begin(), all.end());
+  all.erase(std::unique(all.begin(), all.end()), all.end());
+  return all;
+}
+
+// Flips and moves are local tests; where two sheets of the surface are
+// closer than an edge (thin parts), they can still make triangles cross.
+// Check with CGAL, switch off flips (then moves) around every new crossing
+// (and the 1-rings), and redo from the original mesh; a few rounds suffice.
+SurfaceImproveStats improve_guarded(Mesh& mesh, const Sheets& sh, bool single, const std::vector<int>* materials,
+                                    const SurfaceImproveParams& p) {
   const Mesh original = mesh;
-  std::vector<std::pair<int, int>> pairs;
-  self_intersecting_faces(original, pairs);
-  const std::size_t before = pairs.size();
+  const std::size_t before = crossings(original, materials).size();
   std::vector<char> frozen(mesh.vertices.size(), 0);
   SurfaceImproveStats st;
   for (int attempt = 0;; ++attempt) {
-    Improver im(mesh, field, iso, p, frozen);
+    Improver im(mesh, sh, single, p, frozen);
     st = im.run();
-    if (!self_intersecting_faces(mesh, pairs))
-      throw InputError("improve_surface: the improved mesh is not a manifold polygon mesh (internal error)");
+    const auto pairs = crossings(mesh, materials);
     st.self_intersections = pairs.size();
     if (pairs.size() <= before || attempt == 4) break;
     std::vector<char> seed(mesh.vertices.size(), 0);
     for (const auto& fp : pairs)
       for (int f : {fp.first, fp.second})
         for (int v : mesh.faces[std::size_t(f)]) seed[std::size_t(v)] = 1;
-    // First no flips around the crossing, then (if it persists) no moves either.
     std::vector<char> grow(mesh.vertices.size(), 0);
     for (const Mesh* m : {static_cast<const Mesh*>(&mesh), &original})
       for (const auto& t : m->faces)
@@ -326,6 +376,58 @@ SurfaceImproveStats improve_surface(Mesh& mesh, const ScalarField& field, double
   st.self_intersections_before = before;
   for (char c : frozen) st.frozen += c != 0;
   return st;
+}
+
+void check_params(const SurfaceImproveParams& p) {
+  if (p.rounds < 0 || p.smoothing_steps < 0 || !(p.smoothing >= 0 && p.smoothing <= 1))
+    throw UsageError("improve_surface: rounds and smoothing steps must be >= 0 and smoothing in [0, 1]");
+}
+
+}  // namespace
+
+SurfaceImproveStats improve_surface(Mesh& mesh, const ScalarField& field, double iso, const SurfaceImproveParams& p) {
+  mesh.validate("improve_surface");
+  check_params(p);
+  Sheets sh;
+  sh.group.assign(mesh.faces.size(), 0);
+  sh.eval = [&](const Vec3& x, int, Vec3& g) { return field.value_gradient(x, g) - iso; };
+  return improve_guarded(mesh, sh, true, nullptr, p);
+}
+
+SurfaceImproveStats improve_interfaces(Mesh& mesh, const MaterialSet& ms, const SurfaceImproveParams& p) {
+  mesh.validate("improve_interfaces");
+  check_params(p);
+  const auto ia = mesh.face_ints.find("label_a"), ib = mesh.face_ints.find("label_b");
+  if (ia == mesh.face_ints.end() || ib == mesh.face_ints.end())
+    throw InputError("improve_interfaces: the mesh has no label_a/label_b face properties; expected an interface mesh");
+  // One sheet per material pair: f_a - f_b = d_b - d_a = 0 (d negative inside).
+  std::map<std::pair<int, int>, int> pair_index;
+  std::vector<std::pair<std::size_t, std::size_t>> pair_fields;
+  Sheets sh;
+  sh.group.resize(mesh.faces.size());
+  std::vector<int> materials;
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
+    const int a = ia->second[f], b = ib->second[f];
+    const std::size_t xa = ms.index_of(a), xb = ms.index_of(b);
+    if (xa >= ms.size() || xb >= ms.size())
+      throw InputError("improve_interfaces: face " + std::to_string(f) + " joins labels " + std::to_string(a) +
+                       " and " + std::to_string(b) + ", not both in the material set");
+    const auto it = pair_index.emplace(std::make_pair(a, b), int(pair_fields.size())).first;
+    if (it->second == int(pair_fields.size())) pair_fields.emplace_back(xa, xb);
+    sh.group[f] = it->second;
+    materials.push_back(a);
+    materials.push_back(b);
+  }
+  std::sort(materials.begin(), materials.end());
+  materials.erase(std::unique(materials.begin(), materials.end()), materials.end());
+  sh.eval = [&](const Vec3& x, int g, Vec3& grad) {
+    const auto [xa, xb] = pair_fields[std::size_t(g)];
+    Vec3 ga, gb;
+    const double da = ms.fields[xa]->value_gradient(x, ga), db = ms.fields[xb]->value_gradient(x, gb);
+    grad = gb - ga;
+    return db - da;
+  };
+  return improve_guarded(mesh, sh, false, &materials, p);
 }
 
 }  // namespace pm

@@ -41,7 +41,10 @@ struct InterfaceQuality {
 InterfaceQuality interface_quality(const Mesh& m, const MeshQualityParams& p = {});
 
 /// The outward surface of material `label` taken from an interface mesh
-/// (unused vertices dropped; vertex scalar "index" keeps the original index).
+/// (unused vertices dropped; vertex scalar "index" keeps the interface mesh's
+/// own "index" when it has one, e.g. the particle index tetlabel writes, else
+/// the vertex's index in `m`; other vertex scalars, normals and face
+/// properties follow their elements).
 Mesh material_from_interfaces(const Mesh& m, int label);
 
 /// JSON: {"overall": {...}, "interfaces": {edges, boundary_edges, junction_edges,

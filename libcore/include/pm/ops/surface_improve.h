@@ -16,6 +16,7 @@
 #include <cstddef>
 
 #include "pm/field/field.h"
+#include "pm/field/materials.h"
 #include "pm/io/mesh.h"
 
 namespace pm {
@@ -51,6 +52,16 @@ struct SurfaceImproveStats {
 /// \throw InputError when it is not (boundary or non-manifold edges).
 SurfaceImproveStats improve_surface(Mesh& mesh, const ScalarField& field, double iso,
                                     const SurfaceImproveParams& p = {});
+
+/// The same for the interface mesh of several materials (face properties
+/// label_a, label_b as tetlabel --materials writes them): a vertex inside one
+/// interface moves on it (f_a = f_b, projected with Newton on f_a - f_b); a
+/// vertex on a junction curve or corner (several interfaces, or an edge with
+/// other than two triangles) stays; only edges inside one interface flip.
+/// Crossings are checked on every material's closed surface. Valence shares
+/// count the interface vertices only.
+/// \throw InputError without label_a/label_b or with labels not in `ms`.
+SurfaceImproveStats improve_interfaces(Mesh& interfaces, const MaterialSet& ms, const SurfaceImproveParams& p = {});
 
 /// Radius ratio 2 r_in / r_circ of a triangle (1 equilateral, 0 degenerate).
 double triangle_radius_ratio(const Vec3& a, const Vec3& b, const Vec3& c);
