@@ -35,8 +35,9 @@ namespace pm {
 // Evaluation is split in two: locate() turns a position into tap offsets and
 // fractions and prefetches the lines; accumulate() does the arithmetic. A
 // batch runs locate() kLookahead points ahead of accumulate(), so the cache
-// misses of several evaluations overlap; a single point is a batch of one,
-// which makes batch and single-point results bit-identical by construction.
+// misses of several evaluations overlap; a single point runs the same two
+// functions back to back, so batch and single-point results are
+// bit-identical by construction.
 //
 // Arithmetic. accumulate() sums in double, separably, with the four x taps as
 // lanes: two SSE2 pairs on baseline x86-64, one AVX2 register when the CPU
@@ -367,6 +368,34 @@ void run_batch(const Frame& fr, const Vec3* x, std::size_t n, double* f, Vec3* g
   }
 }
 
+// One point (n == 1): the same steps without the ring.
+template <int Order, AccumulateFn Acc>
+void run_single(const Frame& fr, const Vec3* x, std::size_t n, double* f, Vec3* grad, Mat3* hess) {
+  if (n != 1) return run_batch<Order, Acc>(fr, x, n, f, grad, hess);
+  Taps tp;
+  locate_world(fr, *x, tp);
+  double g[3], h[6];
+  *f = Acc(fr.grid, tp, g, h);
+  if constexpr (Order >= 1) *grad = gradient_to_world(fr.inv_dirs, g);
+  if constexpr (Order >= 2) hessian_to_world(fr.inv_dirs, h, *hess);
+}
+
+// Entry points, one per kernel pair, order and code path: everything above
+// inlined into one function (flatten), so the AVX2 copy is AVX2 throughout.
+template <KernelType V, KernelType D, int Order>
+__attribute__((flatten)) void eval_baseline(const Frame& fr, const Vec3* x, std::size_t n, double* f, Vec3* grad,
+                                            Mat3* hess) {
+  run_single<Order, accumulate<V, D, Order>>(fr, x, n, f, grad, hess);
+}
+
+#if PM_FIELD_AVX2
+template <KernelType V, KernelType D, int Order>
+__attribute__((target("avx2"), flatten)) void eval_avx2(const Frame& fr, const Vec3* x, std::size_t n, double* f,
+                                                        Vec3* grad, Mat3* hess) {
+  run_single<Order, accumulate_avx2<V, D, Order>>(fr, x, n, f, grad, hess);
+}
+#endif
+
 template <int Order>
 void dispatch(const VolumeFieldParams& p, bool avx2, const Frame& fr, const Vec3* x, std::size_t n,
               double* f, Vec3* grad, Mat3* hess) {
@@ -375,22 +404,18 @@ void dispatch(const VolumeFieldParams& p, bool avx2, const Frame& fr, const Vec3
 #if PM_FIELD_AVX2
   if (avx2) {
     if (vb)
-      db ? run_batch<Order, accumulate_avx2<B, B, Order>>(fr, x, n, f, grad, hess)
-         : run_batch<Order, accumulate_avx2<B, C, Order>>(fr, x, n, f, grad, hess);
+      db ? eval_avx2<B, B, Order>(fr, x, n, f, grad, hess) : eval_avx2<B, C, Order>(fr, x, n, f, grad, hess);
     else
-      db ? run_batch<Order, accumulate_avx2<C, B, Order>>(fr, x, n, f, grad, hess)
-         : run_batch<Order, accumulate_avx2<C, C, Order>>(fr, x, n, f, grad, hess);
+      db ? eval_avx2<C, B, Order>(fr, x, n, f, grad, hess) : eval_avx2<C, C, Order>(fr, x, n, f, grad, hess);
     return;
   }
 #else
   (void)avx2;
 #endif
   if (vb)
-    db ? run_batch<Order, accumulate<B, B, Order>>(fr, x, n, f, grad, hess)
-       : run_batch<Order, accumulate<B, C, Order>>(fr, x, n, f, grad, hess);
+    db ? eval_baseline<B, B, Order>(fr, x, n, f, grad, hess) : eval_baseline<B, C, Order>(fr, x, n, f, grad, hess);
   else
-    db ? run_batch<Order, accumulate<C, B, Order>>(fr, x, n, f, grad, hess)
-       : run_batch<Order, accumulate<C, C, Order>>(fr, x, n, f, grad, hess);
+    db ? eval_baseline<C, B, Order>(fr, x, n, f, grad, hess) : eval_baseline<C, C, Order>(fr, x, n, f, grad, hess);
 }
 
 // Reserve n floats plus room to align the start to a 64-byte line, and ask
