@@ -23,6 +23,8 @@ pm_cli_test(volconv.truncated "volconv: error: .*truncated.nrrd" ${VC} ${D}/trun
 pm_cli_test(volconv.truncated_header "volconv: error: .*truncated_header.nrrd" ${VC} ${D}/truncated_header.nrrd /tmp/pm_x.nrrd)
 pm_cli_test(volconv.zero_axis "volconv: error: .*zero_axis.nrrd.*" ${VC} ${D}/zero_axis.nrrd /tmp/pm_x.nrrd)
 pm_cli_test(volconv.unknown_type "volconv: error: .*unknown_type.mha.*MET_FOO" ${VC} ${D}/unknown_type.mha /tmp/pm_x.nrrd)
+pm_cli_test(volconv.pad_value_without_pad "volconv: usage error: --pad-value needs --pad N" ${VC} ${D}/onevoxel.nrrd /tmp/pm_x.nrrd --pad-value 3)
+pm_cli_test(volconv.bad_pad_value "volconv: usage error: --pad-value \"abc\": expected a finite number or \"new\"" ${VC} ${D}/onevoxel.nrrd /tmp/pm_x.nrrd --pad 1 --pad-value abc)
 pm_cli_test(volconv.bad_extension "volconv: usage error: .*unknown volume extension" ${VC} ${D}/onevoxel.nrrd /tmp/pm_x.xyz)
 pm_cli_test(volconv.no_output "volconv: usage error: an output file is required" ${VC} ${D}/onevoxel.nrrd)
 pm_cli_test(volconv.bad_flag "volconv: usage error" ${VC} --frobnicate)

@@ -48,6 +48,22 @@ assert mm["labels"]["1"] == n12 and "2" not in mm["labels"], mm["labels"]
 assert mask["type"] == "uint8" and mask["labels"]["1"] == n12, mask
 assert sum(mask["labels"].values()) == sum(L.values())
 PY
+# --pad 2 --pad-value new: a new outside label (max + 1) on every side, the
+# origin moved back by two voxels, the old labels' counts unchanged.
+"$VC" "$M" "$T/padded.nrrd" --pad 2 --pad-value new
+info "$T/padded.nrrd" > "$T/p.json"
+python3 - "$T/m.json" "$T/p.json" <<'PY'
+import json, sys
+m, p = (json.load(open(x)) for x in sys.argv[1:3])
+new = str(max(int(k) for k in m["labels"]) + 1)
+assert [d + 4 for d in m["dims"]] == p["dims"], (m["dims"], p["dims"])
+for o, q, s in zip(m["origin"], p["origin"], m["spacing"]):
+    assert abs((o - q) - 2 * s) < 1e-9, (m["origin"], p["origin"])
+for k, n in m["labels"].items():
+    assert p["labels"][k] == n, (k, n, p["labels"])
+vol = lambda d: d[0] * d[1] * d[2]
+assert p["labels"][new] == vol(p["dims"]) - vol(m["dims"]), p["labels"]
+PY
 
 # 3. Signed distance of a closed mesh: negative inside, positive outside, |grad| ~ 1.
 "$VC" "$SRC/data/cgal-meshes/knot1.off" "$T/knot.nrrd" --sdf --voxel 0.5 --stats "$T/sdf.json" -q

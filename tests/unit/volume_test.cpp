@@ -137,6 +137,29 @@ TEST(Volume, WorldToIndexInvertsIndexToWorld) {
   EXPECT_TRUE(Geometry::with_spacing(1, 2, 3).axis_aligned());
 }
 
+// Padding keeps every voxel at its world position (oblique grid too), fills
+// the margin with the value, and keeps the type.
+TEST(Volume, PaddedKeepsWorldPositions) {
+  Volume v(VoxelType::i16, {3, 4, 2}, oblique_geometry());
+  for (std::size_t i = 0; i < v.count(); ++i) v.set(i, double(i) - 7);
+  const Volume p = padded(v, 2, 99);
+  EXPECT_EQ(p.type(), VoxelType::i16);
+  EXPECT_EQ(p.dims().nx, 7u);
+  EXPECT_EQ(p.dims().ny, 8u);
+  EXPECT_EQ(p.dims().nz, 6u);
+  for (std::size_t k = 0; k < 2; ++k)
+    for (std::size_t j = 0; j < 4; ++j)
+      for (std::size_t i = 0; i < 3; ++i) {
+        EXPECT_EQ(p.get(i + 2, j + 2, k + 2), v.get(i, j, k));
+        const Vec3 a = v.geometry().index_to_world(Vec3(double(i), double(j), double(k)));
+        const Vec3 b = p.geometry().index_to_world(Vec3(double(i + 2), double(j + 2), double(k + 2)));
+        EXPECT_NEAR(norm(a - b), 0.0, 1e-12);
+      }
+  std::size_t margin = 0;
+  for (std::size_t i = 0; i < p.count(); ++i) margin += p.get(i) == 99;
+  EXPECT_EQ(margin, p.count() - v.count());
+}
+
 TEST(Volume, ZeroSizeAxisAndSingularGeometryThrow) {
   EXPECT_THROW(Volume(VoxelType::f32, {0, 4, 3}), InputError);
   EXPECT_THROW(Volume(VoxelType::f32, {5, 0, 3}), InputError);

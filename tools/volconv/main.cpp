@@ -1,5 +1,6 @@
 // volconv: convert volumes between formats, report headers, make signed
 // distance volumes of closed meshes, and do label-map chores.
+#include <cmath>
 #include <iostream>
 
 #include "pm/base/error.h"
@@ -90,6 +91,17 @@ int main(int argc, char** argv) {
                     "Input is a material set \"L1=a.nrrd,L2=+b.nrrd,...\" (see tetlabel --materials; +: positive "
                     "inside): write the label map of the material with the largest indicator at each voxel node "
                     "(int32, the first volume's grid)");
+  std::size_t pad = 0;
+  std::string pad_value = "0";
+  tool.app.add_option("--pad", pad,
+                      "Last (before --type): grow the grid by N voxels on every side (the origin "
+                      "moves so every voxel keeps its world position), e.g. so that materials touching the "
+                      "volume border get a surface there")
+      ->check(CLI::Range(0, 4096));
+  tool.app.add_option("--pad-value", pad_value,
+                      "Value of the padding voxels: a number, or \"new\" = one more than the largest label "
+                      "(a new outside material for a label map)")
+      ->capture_default_str();
   std::size_t min_voxels = 0;
   tool.app.add_option("--min-voxels", min_voxels,
                       "After --merge: drop labels with fewer than N voxels; their voxels join the most common "
@@ -194,6 +206,24 @@ int main(int argc, char** argv) {
           for (std::size_t i = 0; i < v.count(); ++i) v.set(i, -v.get(i));
         st["parameters"] = {{"distance_iso", distance_iso}, {"inside", below ? "below" : "above"}};
       }
+    }
+    if (pad > 0 || tool.app.count("--pad-value") > 0) {
+      if (pad == 0) throw pm::UsageError("--pad-value needs --pad N with N >= 1");
+      double value = 0;
+      if (pad_value == "new") {
+        pm::require_labels(v, pm::quote(in));
+        value = pm::value_range(v).hi + 1;
+      } else {
+        try {
+          std::size_t pos = 0;
+          value = std::stod(pad_value, &pos);
+          if (pos != pad_value.size() || !std::isfinite(value)) throw std::invalid_argument("");
+        } catch (const std::exception&) {
+          throw pm::UsageError("--pad-value \"" + pad_value + "\": expected a finite number or \"new\"");
+        }
+      }
+      v = pm::padded(v, pad, value);
+      st["pad"] = {{"voxels", pad}, {"value", value}};
     }
     if (!type.empty()) v = v.converted(pm::parse_voxel_type(type));
     pm::write_volume(v, out);

@@ -233,4 +233,21 @@ ValueRange value_range(const Volume& v) {
   return r;
 }
 
+Volume padded(const Volume& v, std::size_t n, double value) {
+  const Dims& d = v.dims();
+  const Dims e{d.nx + 2 * n, d.ny + 2 * n, d.nz + 2 * n};
+  Geometry g = v.geometry();
+  g.origin = g.index_to_world(Vec3(-double(n), -double(n), -double(n)));
+  Volume out(v.type(), e, g);
+  const std::size_t bytes = v.count() ? v.byte_size() / v.count() : 0;
+  auto* dst = static_cast<unsigned char*>(out.raw());
+  if (value != 0)
+    for (std::size_t i = 0; i < out.count(); ++i) out.set(i, value);
+  const auto* src = static_cast<const unsigned char*>(v.raw());
+  for (std::size_t k = 0; k < d.nz; ++k)
+    for (std::size_t j = 0; j < d.ny; ++j)
+      std::memcpy(dst + out.index(n, j + n, k + n) * bytes, src + v.index(0, j, k) * bytes, d.nx * bytes);
+  return out;
+}
+
 }  // namespace pm

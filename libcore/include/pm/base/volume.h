@@ -104,4 +104,10 @@ struct ValueRange {
 };
 ValueRange value_range(const Volume& v);
 
+/// `v` grown by n voxels on every side of every axis, the new voxels set to
+/// `value`; the origin moves by -n steps along each axis so every old voxel
+/// keeps its world position. \throw InputError when the padded size
+/// overflows (as the Volume constructor).
+Volume padded(const Volume& v, std::size_t n, double value);
+
 }  // namespace pm
