@@ -78,6 +78,22 @@ pm::TetMesh delaunay_of(const std::string& points, const pm::Mesh& pts) {
   }
 }
 
+// --improve's result: one info line and the "improve" stats object.
+void report_improve(const pm::SurfaceImproveStats& is, int rounds, const char* valence_key) {
+  pm::info("improved: " + std::to_string(is.flips) + " flips, " + std::to_string(is.moves) +
+           " vertex moves; radius ratio min " + std::to_string(is.rr_min_before) + " -> " +
+           std::to_string(is.rr_min_after) + ", mean " + std::to_string(is.rr_mean_before) + " -> " +
+           std::to_string(is.rr_mean_after) + ", valence 6 " + std::to_string(is.valence6_before) + " -> " +
+           std::to_string(is.valence6_after));
+  pm::stats()["improve"] = {{"rounds", rounds}, {"flips", is.flips}, {"moves", is.moves},
+                            {"rejected_moves", is.rejected_moves},
+                            {"self_intersections", {is.self_intersections_before, is.self_intersections}},
+                            {"frozen_vertices", is.frozen},
+                            {"radius_ratio_min", {is.rr_min_before, is.rr_min_after}},
+                            {"radius_ratio_mean", {is.rr_mean_before, is.rr_mean_after}},
+                            {valence_key, {is.valence6_before, is.valence6_after}}};
+}
+
 std::string surface_path(const std::string& spec, int label) {
   const auto pct = spec.find("%d");
   if (pct != std::string::npos) return spec.substr(0, pct) + std::to_string(label) + spec.substr(pct + 2);
@@ -134,17 +150,7 @@ void run_materials(pm::Mesh pts, const std::string& points, const pm::MaterialOp
     ip.rounds = improve;
     const pm::SurfaceImproveStats is = pm::improve_interfaces(mm.interfaces, ms, ip);
     for (auto& [l, m] : mm.surfaces) m = pm::material_from_interfaces(mm.interfaces, l);
-    pm::info("improved: " + std::to_string(is.flips) + " flips, " + std::to_string(is.moves) +
-             " vertex moves; radius ratio min " + std::to_string(is.rr_min_before) + " -> " +
-             std::to_string(is.rr_min_after) + ", mean " + std::to_string(is.rr_mean_before) + " -> " +
-             std::to_string(is.rr_mean_after));
-    st["improve"] = {{"rounds", improve}, {"flips", is.flips}, {"moves", is.moves},
-                     {"rejected_moves", is.rejected_moves},
-                     {"self_intersections", {is.self_intersections_before, is.self_intersections}},
-                     {"frozen_vertices", is.frozen},
-                     {"radius_ratio_min", {is.rr_min_before, is.rr_min_after}},
-                     {"radius_ratio_mean", {is.rr_mean_before, is.rr_mean_after}},
-                     {"valence6_share_interface_vertices", {is.valence6_before, is.valence6_after}}};
+    report_improve(is, improve, "valence6_share_interface_vertices");
   }
   pm::write_mesh(mm.interfaces, out);
   pm::Json outputs = {out};
@@ -300,17 +306,7 @@ int main(int argc, char** argv) {
       pm::SurfaceImproveParams ip;
       ip.rounds = improve;
       const pm::SurfaceImproveStats is = pm::improve_surface(surf, *lf.field, lf.iso, ip);
-      pm::info("improved: " + std::to_string(is.flips) + " flips, " + std::to_string(is.moves) +
-               " vertex moves; radius ratio min " + std::to_string(is.rr_min_before) + " -> " +
-               std::to_string(is.rr_min_after) + ", valence 6 " + std::to_string(is.valence6_before) + " -> " +
-               std::to_string(is.valence6_after));
-      st["improve"] = {{"rounds", improve}, {"flips", is.flips}, {"moves", is.moves},
-                       {"rejected_moves", is.rejected_moves},
-                       {"self_intersections", {is.self_intersections_before, is.self_intersections}},
-                       {"frozen_vertices", is.frozen},
-                       {"radius_ratio_min", {is.rr_min_before, is.rr_min_after}},
-                       {"radius_ratio_mean", {is.rr_mean_before, is.rr_mean_after}},
-                       {"valence6_share", {is.valence6_before, is.valence6_after}}};
+      report_improve(is, improve, "valence6_share");
     }
     pm::write_mesh(surf, out);
     if (!tets.empty()) pm::write_medit(tm, 0, tets);
