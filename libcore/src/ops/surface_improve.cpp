@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "pm/base/error.h"
+#include "pm/field/junctions.h"
 #include "pm/ops/meshstats.h"
 
 namespace pm {
@@ -46,6 +47,10 @@ Vec3 face_normal(const Vec3& a, const Vec3& b, const Vec3& c) { return cross(b -
 struct Sheets {
   std::vector<int> group;  // per face
   std::function<double(const Vec3&, int, Vec3&)> eval;
+  // Interfaces only: the two materials of each face, and the projection of a
+  // point onto the triple curve of three materials (false when it fails).
+  std::vector<std::array<int, 2>> face_labels;
+  std::function<bool(Vec3&, const std::array<int, 3>&)> project_curve;
 };
 
 class Improver {
@@ -88,6 +93,8 @@ class Improver {
     edges_.reserve(by_edge.size());
     valence_.assign(nv, 0);
     fixed_.assign(nv, 0);
+    curve_nb_.assign(nv, {-1, -1});
+    std::vector<int> junction_edges(nv, 0);
     std::vector<int> vgroup(nv, -1);
     for (std::size_t f = 0; f < nf; ++f)
       for (int v : m_.faces[f]) {
@@ -105,6 +112,11 @@ class Improver {
         opp_[hs[1]] = hs[0];
       } else {
         fixed_[a] = fixed_[b] = 1;  // boundary, junction curve or inconsistent orientation
+        if (hs.size() >= 3)
+          for (const auto& [u, w] : {std::make_pair(a, b), std::make_pair(b, a)}) {
+            if (junction_edges[u] < 2) curve_nb_[u][junction_edges[u]] = w;
+            ++junction_edges[u];
+          }
         if (single_ && hs.size() == 1)
           throw InputError("improve_surface: edge (" + std::to_string(a) + ", " + std::to_string(b) +
                            ") borders one triangle; expected a closed surface");
@@ -115,7 +127,27 @@ class Improver {
                            "; expected a closed, consistently oriented manifold");
       }
     }
+    curve_count_ = std::move(junction_edges);
   }
+
+  // A vertex inside a triple curve: exactly two junction edges, and its
+  // faces show exactly three materials (returned sorted).
+  bool curve_vertex(std::size_t v, const std::uint32_t* faces, std::size_t count, std::array<int, 3>& mats) const {
+    if (!sh_.project_curve || curve_nb_[v][1] < 0 || curve_count(v) != 2) return false;
+    int n = 0;
+    for (std::size_t q = 0; q < count; ++q)
+      for (int l : sh_.face_labels[faces[q]]) {
+        bool seen = false;
+        for (int k = 0; k < n; ++k) seen |= mats[std::size_t(k)] == l;
+        if (seen) continue;
+        if (n == 3) return false;
+        mats[std::size_t(n++)] = l;
+      }
+    if (n != 3) return false;
+    std::sort(mats.begin(), mats.end());
+    return true;
+  }
+  int curve_count(std::size_t v) const { return curve_count_.empty() ? 0 : curve_count_[v]; }
 
   // Distance-like deviation of a point from the surface: |F - iso| / |∇F|.
   double deviation(const Vec3& x, int group) const {
@@ -153,7 +185,10 @@ class Improver {
       const double dev_old = dev(a, 0) + dev(b, 0) + dev(c, 0) + dev(d, 0);
       const double dev_new = dev(a, -1) + dev(b, -1) + dev(c, 1) + dev(d, 1);
       const bool quality_flip = rr_old < p_.poor && rr_new > p_.quality_gain * rr_old && dev_new <= dev_old + 2;
-      const bool valence_flip = dev_new < dev_old && rr_new >= p_.keep_quality * rr_old;
+      // Never below min(old, 0.5): the mesh's worst triangle never gets worse
+      // than that (the same rule as the smoothing's).
+      const bool valence_flip =
+          dev_new < dev_old && rr_new >= std::max(p_.keep_quality * rr_old, std::min(rr_old, 0.5));
       if (!quality_flip && !valence_flip) continue;
       // No fold: the new triangles face the way the old pair did and each other.
       const Vec3 n_old = normalized(normalized(face_normal(A, B, C)) + normalized(face_normal(B, A, D)));
@@ -211,7 +246,23 @@ class Improver {
     std::vector<char> ok(nv, 0);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nv, 256), [&](const tbb::blocked_range<std::size_t>& r) {
       for (std::size_t v = r.begin(); v != r.end(); ++v) {
-        if (start[v] == start[v + 1] || frozen_[v] >= 2 || fixed_[v]) continue;
+        if (start[v] == start[v + 1] || frozen_[v] >= 2) continue;
+        std::array<int, 3> mats;
+        if (fixed_[v]) {
+          // A triple-curve vertex slides along the curve towards the middle of
+          // its two curve neighbours and is projected back onto the curve.
+          if (!curve_vertex(v, &list[start[v]], start[v + 1] - start[v], mats)) continue;
+          const Vec3 &p = V[std::size_t(curve_nb_[v][0])], &q = V[std::size_t(curve_nb_[v][1])];
+          const Vec3 t = normalized(q - p);
+          if (!is_finite(t)) continue;
+          const Vec3 step = t * (dot(t, (p + q) * 0.5 - V[v]) * p_.smoothing);
+          const Vec3 along = V[v] + step;
+          Vec3 x = along;
+          if (!sh_.project_curve(x, mats) || norm(x - along) > 0.5 * norm(step) + 10 * tol_) continue;
+          prop[v] = x;
+          ok[v] = 1;
+          continue;
+        }
         const int grp = sh_.group[list[start[v]]];
         Vec3 sum;
         double wsum = 0;
@@ -241,7 +292,7 @@ class Improver {
     // below min(its old value, 0.5).
     for (std::size_t v = 0; v < nv; ++v) {
       if (!ok[v]) {
-        if (start[v] != start[v + 1] && frozen_[v] < 2 && !fixed_[v]) ++st_.rejected_moves;
+        if (start[v] != start[v + 1] && frozen_[v] < 2 && !fixed_[v]) ++st_.rejected_moves;  // curve vertices not counted
         continue;
       }
       const Vec3 old = V[v];
@@ -308,6 +359,8 @@ class Improver {
   std::unordered_set<std::uint64_t> edges_;
   std::vector<int> valence_;
   std::vector<char> fixed_;  // junction vertices (several sheets, or an edge with != 2 faces)
+  std::vector<std::array<int, 2>> curve_nb_;  // the other ends of a vertex's first two junction edges
+  std::vector<int> curve_count_;              // junction edges at each vertex
   const std::vector<char>& frozen_;
   SurfaceImproveStats st_;
 };
@@ -420,6 +473,18 @@ SurfaceImproveStats improve_interfaces(Mesh& mesh, const MaterialSet& ms, const 
   }
   std::sort(materials.begin(), materials.end());
   materials.erase(std::unique(materials.begin(), materials.end()), materials.end());
+  sh.face_labels.resize(mesh.faces.size());
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f) sh.face_labels[f] = {ia->second[f], ib->second[f]};
+  CellProjectParams cp;
+  cp.max_steps = p.newton_steps + 4;
+  sh.project_curve = [&](Vec3& x, const std::array<int, 3>& labels) {
+    const JunctionCell c = make_cell({int(ms.index_of(labels[0])), int(ms.index_of(labels[1])),
+                                      int(ms.index_of(labels[2]))});
+    const CellProjection r = project_to_cell(ms, c, x, cp);
+    if (!r.converged || !r.dominant) return false;
+    x = r.x;
+    return true;
+  };
   sh.eval = [&](const Vec3& x, int g, Vec3& grad) {
     const auto [xa, xb] = pair_fields[std::size_t(g)];
     Vec3 ga, gb;

@@ -26,8 +26,10 @@ struct SurfaceImproveParams {
   int smoothing_steps = 2;     ///< tangential smoothing steps per round
   double smoothing = 0.5;      ///< fraction of the way to the area-weighted centroid of the 1-ring
   /// A flip may not lower the pair's smaller radius ratio below this fraction
-  /// of what it was (valence flips), and must raise it by this factor
-  /// (quality flips of pairs below `poor`).
+  /// of what it was nor below min(what it was, 0.5) (valence flips), and must
+  /// raise it by this factor (quality flips of pairs below `poor`); moves obey
+  /// the same min(old, 0.5) floor, so the worst radius ratio of the mesh ends
+  /// >= min(its start, 0.5).
   double keep_quality = 0.8, quality_gain = 1.1, poor = 0.5;
   double max_fold_deg = 30;    ///< a flip or move may turn a triangle's normal by at most this much
   int newton_steps = 6;        ///< projection onto F = iso after a move
