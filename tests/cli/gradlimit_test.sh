@@ -76,6 +76,17 @@ assert abs(h[at(13, 5, 10)] - (1 + 0.3 * 6)) < 1e-4, h[at(13, 5, 10)]
 assert abs(h[at(14, 0, 0)] - min(1 + 0.3 * math.sqrt(49 + 100 + 25), 10 + 0.3 * 2)) < 1e-4, h[at(14, 0, 0)]
 PY
 
+# The output is raw by default; --gzip compresses it, same values.
+grep -a -m1 "^encoding: raw" "$T/out.nrrd" >/dev/null || { echo "default output not raw"; exit 1; }
+"$GL" "$T/spike.nrrd" "$T/out_gz.nrrd" --delta 0.3 --gzip -q
+grep -a -m1 "^encoding: gzip" "$T/out_gz.nrrd" >/dev/null || { echo "--gzip output not gzip"; exit 1; }
+python3 - "$T/out.nrrd" "$T/out_gz.nrrd" <<'PY'
+import gzip, sys
+a = open(sys.argv[1], "rb").read().partition(b"\n\n")[2]
+b = gzip.decompress(open(sys.argv[2], "rb").read().partition(b"\n\n")[2])
+assert a == b, "raw and --gzip outputs differ"
+PY
+
 # A failed run leaves no output and no temporary file.
 mkdir "$T/fail"
 if "$GL" "$SRC/tests/data/zeros.nrrd" "$T/fail/out.nrrd" 2>/dev/null; then echo "all-unknown input accepted"; exit 1; fi

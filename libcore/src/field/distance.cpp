@@ -326,7 +326,29 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
     const float lat = std::sqrt(lat2) - rhof;
     return double(a * a + lat * lat);
   };
+  // The same, or infinity when it is certainly >= bound (the normal part alone
+  // is, which spares the square root).
+  auto disc_d2_below = [&](const double x[3], std::int32_t b, double bound) {
+    const Disc& D = disc[std::size_t(b)];
+    const float v0 = float(double(D.p[0]) - x[0]), v1 = float(double(D.p[1]) - x[1]),
+                v2 = float(double(D.p[2]) - x[2]);
+    const float vv = v0 * v0 + v1 * v1 + v2 * v2;
+    if (D.m[0] == 0 && D.m[1] == 0 && D.m[2] == 0) return double(vv);
+    const float a = v0 * D.m[0] + v1 * D.m[1] + v2 * D.m[2];
+    const float aa = a * a;
+    if (double(aa) >= bound) return kInf;
+    const float lat2 = std::max(0.f, vv - aa);
+    if (lat2 <= rhof * rhof) return double(aa);
+    const float lat = std::sqrt(lat2) - rhof;
+    return double(aa + lat * lat);
+  };
+  // Neighbouring nodes mostly share their nearest band node, so each row
+  // keeps the candidate discs of the last (band node, side) pair it used.
   tbb::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
+    std::int32_t cand[27];
+    int ncand = 0;
+    std::size_t cached_site = std::size_t(-1);
+    bool cached_side = false;
     for (std::size_t j = 0; j < ny; ++j)
       for (std::size_t i = 0; i < nx; ++i) {
         const std::size_t c = i + nx * j + nxy * k;
@@ -339,21 +361,28 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
           continue;
         }
         const bool side = below(c);
-        const std::size_t si = s % nx, sj = (s / nx) % ny, sk = s / nxy;
-        double best = kInf;
-        for (std::size_t kk = sk > 0 ? sk - 1 : 0; kk <= std::min(sk + 1, nz - 1); ++kk)
-          for (std::size_t jj = sj > 0 ? sj - 1 : 0; jj <= std::min(sj + 1, ny - 1); ++jj) {
-            const std::int32_t* row = band.data() + nx * jj + nxy * kk;
-            for (std::size_t ii = si > 0 ? si - 1 : 0; ii <= std::min(si + 1, nx - 1); ++ii) {
-              const std::int32_t b = row[ii];
-              if (b < 0 || disc[std::size_t(b)].below != side) continue;
-              const double d2 = disc_d2(x, b);
-              if (d2 < best) {
-                best = d2;
-                arg = b;
+        if (s != cached_site || side != cached_side) {
+          cached_site = s;
+          cached_side = side;
+          ncand = 0;
+          const std::size_t si = s % nx, sj = (s / nx) % ny, sk = s / nxy;
+          for (std::size_t kk = sk > 0 ? sk - 1 : 0; kk <= std::min(sk + 1, nz - 1); ++kk)
+            for (std::size_t jj = sj > 0 ? sj - 1 : 0; jj <= std::min(sj + 1, ny - 1); ++jj) {
+              const std::int32_t* row = band.data() + nx * jj + nxy * kk;
+              for (std::size_t ii = si > 0 ? si - 1 : 0; ii <= std::min(si + 1, nx - 1); ++ii) {
+                const std::int32_t b = row[ii];
+                if (b >= 0 && disc[std::size_t(b)].below == side) cand[ncand++] = b;
               }
             }
+        }
+        double best = kInf;
+        for (int q = 0; q < ncand; ++q) {
+          const double d2 = disc_d2_below(x, cand[q], best);
+          if (d2 < best) {
+            best = d2;
+            arg = cand[q];
           }
+        }
         site[c] = arg;
         sq[c] = float(best);
       }
@@ -363,29 +392,48 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
   //    node adopts a neighbour's disc when it is nearer. This removes most of
   //    the error of step 3 where the nearest band node is not the one whose
   //    disc is nearest (far from a tilted surface).
-  for (int axis = 0; axis < 3; ++axis) {
-    const std::size_t len = counts[axis], st = stride[axis];
-    const int a1 = axis == 0 ? 1 : 0, a2 = axis == 2 ? 1 : 2;
-    tbb::parallel_for(std::size_t(0), counts[a2], [&](std::size_t u2) {
-      for (std::size_t u1 = 0; u1 < counts[a1]; ++u1) {
-        const std::size_t base = u1 * stride[a1] + u2 * stride[a2];
-        double x[3];
-        x[a1] = double(u1) * h[a1];
-        x[a2] = double(u2) * h[a2];
-        auto relax = [&](std::size_t at, std::size_t from) {
-          x[axis] = double(at) * h[axis];
-          const std::size_t c = base + at * st;
-          const std::int32_t b = site[base + from * st];
-          if (b == site[c] || b < 0 || site[c] < 0) return;
-          const double d2 = disc_d2(x, b);
-          if (d2 < double(sq[c])) {
-            sq[c] = float(d2);
-            site[c] = b;
-          }
-        };
-        for (std::size_t t = 1; t < len; ++t) relax(t, t - 1);
-        for (std::size_t t = len - 1; t-- > 0;) relax(t, t + 1);
+  //    Lines along x run one after the other; lines along y and z are swept
+  //    a whole x-row at a time (each line still forward, then backward), so
+  //    memory is read in contiguous rows.
+  auto relax = [&](std::size_t c, std::size_t from, const double x[3]) {
+    const std::int32_t b = site[from];
+    if (b == site[c] || b < 0 || site[c] < 0) return;
+    const double d2 = disc_d2_below(x, b, double(sq[c]));
+    if (d2 < double(sq[c])) {
+      sq[c] = float(d2);
+      site[c] = b;
+    }
+  };
+  tbb::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
+    for (std::size_t j = 0; j < ny; ++j) {
+      const std::size_t base = nx * j + nxy * k;
+      double x[3] = {0, double(j) * h[1], double(k) * h[2]};
+      for (std::size_t t = 1; t < nx; ++t) {
+        x[0] = double(t) * h[0];
+        relax(base + t, base + t - 1, x);
       }
+      for (std::size_t t = nx - 1; t-- > 0;) {
+        x[0] = double(t) * h[0];
+        relax(base + t, base + t + 1, x);
+      }
+    }
+  });
+  for (int axis = 1; axis < 3; ++axis) {
+    const std::size_t len = counts[axis], st = stride[axis];
+    const int other = axis == 1 ? 2 : 1;  // the line's fixed coordinate besides x
+    tbb::parallel_for(std::size_t(0), counts[other], [&](std::size_t u) {
+      const std::size_t base = u * stride[other];
+      double x[3];
+      x[other] = double(u) * h[other];
+      auto row = [&](std::size_t at, std::size_t from) {
+        x[axis] = double(at) * h[axis];
+        for (std::size_t i = 0; i < nx; ++i) {
+          x[0] = double(i) * h[0];
+          relax(base + at * st + i, base + from * st + i, x);
+        }
+      };
+      for (std::size_t t = 1; t < len; ++t) row(t, t - 1);
+      for (std::size_t t = len - 1; t-- > 0;) row(t, t + 1);
     });
   }
 

@@ -16,45 +16,73 @@ namespace pm {
 namespace {
 
 // A small static k-d tree for nearest-point queries (median splits along the
-// widest axis, leaves of up to 8 points).
+// widest axis, leaves of up to 8 points stored contiguously). Every node keeps
+// the tight bounding box of its points; the search visits the nearer child
+// first and skips a subtree whose box is no nearer than the best point so far
+// (tight boxes prune far better than split planes on medial sheets, where
+// many points lie at almost the same distance). It can start from a known
+// upper bound, e.g. the distance to the previous query's nearest point.
+// The result is the exact minimum whatever the bound, so it does not depend
+// on the order of the queries.
 class KdTree {
  public:
-  explicit KdTree(const std::vector<Vec3>& pts) : pts_(pts), idx_(pts.size()) {
-    std::iota(idx_.begin(), idx_.end(), std::size_t(0));
+  explicit KdTree(const std::vector<Vec3>& pts) {
+    std::vector<std::size_t> idx(pts.size());
+    std::iota(idx.begin(), idx.end(), std::size_t(0));
     nodes_.reserve(2 * pts.size() / kLeaf + 2);
-    build(0, idx_.size());
+    build(pts, idx, 0, idx.size());
+    pts_.resize(pts.size());
+    for (std::size_t i = 0; i < idx.size(); ++i) pts_[i] = pts[idx[i]];
   }
 
-  /// Squared distance from x to the nearest point.
-  double nearest2(const Vec3& x) const {
-    double best = 1e300;
-    search(0, x, best);
+  /// Squared distance from x to the nearest point, and that point's index
+  /// (in the tree's order) in `at`. `bound2`: an upper bound on the answer
+  /// (the squared distance to some point), or infinity.
+  double nearest2(const Vec3& x, std::size_t& at, double bound2 = 1e300) const {
+    double best = bound2;
+    if (box_d2(nodes_[0], x) < best) search(0, x, best, at);
     return best;
   }
+  const Vec3& point(std::size_t at) const { return pts_[at]; }
+  std::size_t size() const { return pts_.size(); }
 
  private:
   static constexpr std::size_t kLeaf = 8;
   struct Node {
-    std::size_t begin, end;  // leaf range in idx_
+    std::size_t begin, end;  // leaf range in pts_
     int axis = -1;           // -1: leaf
     double split = 0;
     std::size_t left = 0, right = 0;
+    double lo[3], hi[3];  // tight bounding box of the node's points
   };
 
-  std::size_t build(std::size_t b, std::size_t e) {
+  static double box_d2(const Node& n, const Vec3& x) {
+    double s = 0;
+    for (int a = 0; a < 3; ++a) {
+      const double u = std::max(n.lo[a] - x[a], 0.0) + std::max(x[a] - n.hi[a], 0.0);
+      s += u * u;
+    }
+    return s;
+  }
+
+  std::size_t build(const std::vector<Vec3>& pts, std::vector<std::size_t>& idx, std::size_t b, std::size_t e) {
     const std::size_t id = nodes_.size();
     nodes_.push_back({b, e});
-    if (e - b <= kLeaf) return id;
     Box box;
-    for (std::size_t i = b; i < e; ++i) box.extend(pts_[idx_[i]]);
+    for (std::size_t i = b; i < e; ++i) box.extend(pts[idx[i]]);
+    for (int a = 0; a < 3; ++a) {
+      nodes_[id].lo[a] = box.lo[a];
+      nodes_[id].hi[a] = box.hi[a];
+    }
+    if (e - b <= kLeaf) return id;
     const Vec3 s = box.size();
     const int axis = s.x >= s.y && s.x >= s.z ? 0 : (s.y >= s.z ? 1 : 2);
     const std::size_t m = b + (e - b) / 2;
-    std::nth_element(idx_.begin() + long(b), idx_.begin() + long(m), idx_.begin() + long(e),
-                     [&](std::size_t u, std::size_t v) { return pts_[u][axis] < pts_[v][axis]; });
-    const double split = pts_[idx_[m]][axis];
-    const std::size_t l = build(b, m);
-    const std::size_t r = build(m, e);
+    std::nth_element(idx.begin() + long(b), idx.begin() + long(m), idx.begin() + long(e),
+                     [&](std::size_t u, std::size_t v) { return pts[u][axis] < pts[v][axis]; });
+    const double split = pts[idx[m]][axis];
+    const std::size_t l = build(pts, idx, b, m);
+    const std::size_t r = build(pts, idx, m, e);
     nodes_[id].axis = axis;
     nodes_[id].split = split;
     nodes_[id].left = l;
@@ -62,20 +90,28 @@ class KdTree {
     return id;
   }
 
-  void search(std::size_t id, const Vec3& x, double& best) const {
+  // Called only when the node's box is nearer than best.
+  void search(std::size_t id, const Vec3& x, double& best, std::size_t& at) const {
     const Node& n = nodes_[id];
     if (n.axis < 0) {
-      for (std::size_t i = n.begin; i < n.end; ++i) best = std::min(best, norm2(pts_[idx_[i]] - x));
+      for (std::size_t i = n.begin; i < n.end; ++i) {
+        const double d2 = norm2(pts_[i] - x);
+        if (d2 < best || (d2 == best && i < at)) {
+          best = d2;
+          at = i;
+        }
+      }
       return;
     }
-    const double d = x[n.axis] - n.split;
-    const std::size_t near = d < 0 ? n.left : n.right, far = d < 0 ? n.right : n.left;
-    search(near, x, best);
-    if (d * d < best) search(far, x, best);
+    const double dl = box_d2(nodes_[n.left], x), dr = box_d2(nodes_[n.right], x);
+    const bool left_first = dl <= dr;
+    const std::size_t c1 = left_first ? n.left : n.right, c2 = left_first ? n.right : n.left;
+    const double d1 = left_first ? dl : dr, d2 = left_first ? dr : dl;
+    if (d1 < best) search(c1, x, best, at);
+    if (d2 < best) search(c2, x, best, at);
   }
 
-  const std::vector<Vec3>& pts_;
-  std::vector<std::size_t> idx_;
+  std::vector<Vec3> pts_;
   std::vector<Node> nodes_;
 };
 
@@ -134,6 +170,7 @@ SizingFieldResult sizing_field(const std::vector<SizingSurface>& surfaces, const
     const std::vector<float> d = surf.sdf.to_float();
     const KdTree tree(surf.medial_axis);
     tbb::parallel_for(std::size_t(0), n.nz, [&](std::size_t k) {
+      std::size_t last = std::size_t(-1);  // the previous query's nearest point: an upper bound
       for (std::size_t j = 0; j < n.ny; ++j)
         for (std::size_t i = 0; i < n.nx; ++i) {
           const std::size_t c = i + n.nx * (j + n.ny * k);
@@ -155,7 +192,8 @@ SizingFieldResult sizing_field(const std::vector<SizingSurface>& surfaces, const
           field.evaluate(x, grad, hess);
           const Curvature cv = curvature(grad, hess);
           const double kmax = std::max(std::fabs(cv.k1), std::fabs(cv.k2));
-          const double lfs = std::sqrt(tree.nearest2(x));
+          const double bound2 = last < tree.size() ? norm2(tree.point(last) - x) : 1e300;
+          const double lfs = std::sqrt(tree.nearest2(x, last, bound2));
           const bool by_curv = kmax * lfs > 1;
           double h = C * (by_curv ? 1 / kmax : lfs);
           bool raised = false;

@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cfloat>
 #include <cmath>
 #include <limits>
@@ -63,9 +64,10 @@ namespace {
 
 // One explicit step of level-set mean-curvature flow phi_t = kappa |grad phi|
 // at the active nodes (Jacobi: reads `phi`, writes `next`), clamped between
-// the fillet and round distances. Returns the largest move of a node next to
-// the zero set (a face neighbour across it) within `near` of it.
-double flow_step(const std::vector<std::size_t>& active, const std::vector<float>& phi, std::vector<float>& next,
+// the fillet and round distances lo[t], hi[t] (kept compact, next to the
+// index list). Returns the largest move of a node next to the zero set (a
+// face neighbour across it) within `near` of it.
+double flow_step(const std::vector<std::uint32_t>& active, const std::vector<float>& phi, std::vector<float>& next,
                  const std::vector<float>& lo, const std::vector<float>& hi, const Dims& d, const double h[3],
                  double dt, double near) {
   const std::size_t sx = 1, sy = d.nx, sz = d.nx * d.ny;
@@ -90,7 +92,7 @@ double flow_step(const std::vector<std::size_t>& active, const std::vector<float
       const double num = pxx * (gy2 + gz2) + pyy * (gx2 + gz2) + pzz * (gx2 + gy2) -
                          2 * (px * py * pxy + px * pz * pxz + py * pz * pyz);
       double v = f + dt * num / (g2 + 1e-12);
-      v = std::min(std::max(v, double(lo[c])), double(hi[c]));
+      v = std::min(std::max(v, double(lo[t])), double(hi[t]));
       next[c] = float(v);
       // Motion of the zero set: only at nodes with a face neighbour across it.
       const bool neg = f < 0;
@@ -223,28 +225,36 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
   std::optional<ScopedStage> stage(std::in_place, "tighten.mortar");
   DistanceParams dp;
   dp.band = std::max(r, w) + hmax;
-  std::vector<float> dS = signed_distance(F, wd, gw, dp);
+  auto timed_sd = [](const char* what, const std::vector<float>& f, const Dims& dd, const Geometry& gg,
+                     const DistanceParams& q) {
+    const auto t0 = std::chrono::steady_clock::now();
+    std::vector<float> out = signed_distance(f, dd, gg, q);
+    add_seconds(what, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    return out;
+  };
+  std::vector<float> dS = timed_sd("tighten.sd_S", F, wd, gw, dp);
   std::vector<float>().swap(F);
   dp.allow_no_crossing = true;  // the erosion can be empty (everything thinner than 2r)
   dp.band = w + hmax;
   dp.iso = -r;
-  std::vector<float> dR = signed_distance(dS, wd, gw, dp);
+  std::vector<float> dR = timed_sd("tighten.sd_round", dS, wd, gw, dp);
   dp.iso = r;
-  std::vector<float> dF = signed_distance(dS, wd, gw, dp);
+  std::vector<float> dF = timed_sd("tighten.sd_fillet", dS, wd, gw, dp);
   tbb::parallel_for(std::size_t(0), N, [&](std::size_t c) {
     if (dR[c] < FLT_MAX) dR[c] = std::max(float(dR[c] - r), dS[c]);
     if (dF[c] > -FLT_MAX) dF[c] = std::min(float(dF[c] + r), dS[c]);
   });
 
   // Active nodes: where round and fillet differ near the mortar, off the border.
-  std::vector<std::size_t> active;
+  std::vector<std::uint32_t> active;  // working-box indices (the box has < 2^31 nodes)
   {
-    std::vector<std::vector<std::size_t>> per(wd.nz);
+    std::vector<std::vector<std::uint32_t>> per(wd.nz);
     tbb::parallel_for(std::size_t(1), wd.nz - 1, [&](std::size_t k) {
       for (std::size_t j = 1; j + 1 < wd.ny; ++j)
         for (std::size_t i = 1; i + 1 < wd.nx; ++i) {
           const std::size_t c = i + wd.nx * (j + wd.ny * k);
-          if (dF[c] < w && dR[c] > -w && double(dR[c]) - double(dF[c]) > 1e-4 * hmin) per[k].push_back(c);
+          if (dF[c] < w && dR[c] > -w && double(dR[c]) - double(dF[c]) > 1e-4 * hmin)
+            per[k].push_back(std::uint32_t(c));
         }
     });
     for (auto& v : per) active.insert(active.end(), v.begin(), v.end());
@@ -252,7 +262,13 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
   res.mortar_nodes = active.size();
 
   stage.emplace("tighten.flow");
-  // Clamped mean-curvature flow.
+  // Clamped mean-curvature flow. `phi` and `next` agree off the active nodes,
+  // so a step writes `next` at the active nodes and swaps the two.
+  std::vector<float> lo_a(active.size()), hi_a(active.size());
+  tbb::parallel_for(std::size_t(0), active.size(), [&](std::size_t t) {
+    lo_a[t] = dF[active[t]];
+    hi_a[t] = dR[active[t]];
+  });
   std::vector<float> phi = dS, next = dS;
   const double dt = 0.45 / (1 / (h[0] * h[0]) + 1 / (h[1] * h[1]) + 1 / (h[2] * h[2]));
   const int max_it = p.max_iterations > 0 ? p.max_iterations : int(20 * (r / hmin) * (r / hmin)) + 100;
@@ -260,8 +276,8 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
   reinit.band = 2 * w;
   const std::size_t sy = wd.nx, sz = wd.nx * wd.ny;
   for (int it = 1; it <= max_it && !active.empty(); ++it) {
-    const double moved = flow_step(active, phi, next, dF, dR, wd, h, dt, 1.5 * hmax);
-    for (std::size_t c : active) phi[c] = next[c];
+    const double moved = flow_step(active, phi, next, lo_a, hi_a, wd, h, dt, 1.5 * hmax);
+    phi.swap(next);
     res.iterations = it;
     res.last_change = moved / hmin;
     const bool after_reinit = it > 1 && (it - 1) % p.reinit_every == 0;  // the first step relaxes the new field
@@ -274,7 +290,9 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
     if (it % p.reinit_every == 0 && res.last_change > 10 * p.tolerance) {
       // Re-distance away from the zero set; nodes next to it keep their values
       // so the zero set does not move.
+      const auto t0 = std::chrono::steady_clock::now();
       std::vector<float> d = signed_distance(phi, wd, gw, reinit);
+      add_seconds("tighten.reinit", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
       tbb::parallel_for(std::size_t(1), wd.nz - 1, [&](std::size_t k) {
         for (std::size_t j = 1; j + 1 < wd.ny; ++j)
           for (std::size_t i = 1; i + 1 < wd.nx; ++i) {
@@ -287,6 +305,7 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
       });
       phi.swap(d);
       for (std::size_t c : active) phi[c] = std::min(std::max(phi[c], dF[c]), dR[c]);
+      next = phi;
     }
   }
   if (active.empty()) res.converged = true;
