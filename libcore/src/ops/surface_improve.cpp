@@ -37,7 +37,6 @@ std::uint64_t undirected(int a, int b) {
   const std::uint32_t lo = std::uint32_t(std::min(a, b)), hi = std::uint32_t(std::max(a, b));
   return (std::uint64_t(hi) << 32) | lo;
 }
-std::uint64_t directed(int a, int b) { return (std::uint64_t(std::uint32_t(a)) << 32) | std::uint32_t(b); }
 
 Vec3 face_normal(const Vec3& a, const Vec3& b, const Vec3& c) { return cross(b - a, c - a); }
 

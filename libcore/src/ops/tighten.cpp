@@ -62,38 +62,98 @@ std::vector<std::uint8_t> binary_mask_inside(const Volume& mask, const std::stri
 
 namespace {
 
+// The flowing band in compact form. The flow updates only the active nodes
+// and reads their 18 neighbours (faces and edges of the 3x3x3 block); over
+// the whole working box those reads miss the caches (the band is a thin
+// shell, so neighbouring rows are rarely reused). Here the active values come
+// first, then the distinct non-active neighbours (constant between
+// re-distancings), and each active node keeps its 18 references into that
+// array: the same floats, the same arithmetic, a few MB instead of the box.
+struct Band {
+  static constexpr int kRefs = 18;
+  std::size_t active = 0;                 // values [0, active) flow; the rest are constants
+  std::vector<std::uint32_t> grid;        // grid index of every value (active ones first)
+  std::vector<std::uint32_t> ref;         // kRefs per active node, order as in flow_step
+};
+
+// Stencil offsets in flow_step's order: x+ x- y+ y- z+ z-, then the xy, xz
+// and yz edge quadruples (+ +, + -, - +, - -).
+void stencil(const Dims& d, std::ptrdiff_t off[Band::kRefs]) {
+  const std::ptrdiff_t sx = 1, sy = std::ptrdiff_t(d.nx), sz = std::ptrdiff_t(d.nx * d.ny);
+  const std::ptrdiff_t o[Band::kRefs] = {sx,       -sx,      sy,       -sy,      sz,       -sz,
+                                         sx + sy,  sx - sy,  -sx + sy, -sx - sy, sx + sz,  sx - sz,
+                                         -sx + sz, -sx - sz, sy + sz,  sy - sz,  -sy + sz, -sy - sz};
+  std::copy(o, o + Band::kRefs, off);
+}
+
+Band make_band(const std::vector<std::uint32_t>& active, const Dims& d) {
+  Band b;
+  b.active = active.size();
+  b.grid = active;
+  std::ptrdiff_t off[Band::kRefs];
+  stencil(d, off);
+  constexpr std::uint32_t kNone = ~std::uint32_t(0);
+  std::vector<std::uint32_t> slot(d.count(), kNone);  // grid index -> band index
+  for (std::size_t t = 0; t < active.size(); ++t) slot[active[t]] = std::uint32_t(t);
+  b.ref.resize(active.size() * Band::kRefs);
+  for (std::size_t t = 0; t < active.size(); ++t)
+    for (int k = 0; k < Band::kRefs; ++k) {
+      const std::size_t c = std::size_t(std::ptrdiff_t(active[t]) + off[k]);
+      if (slot[c] == kNone) {
+        slot[c] = std::uint32_t(b.grid.size());
+        b.grid.push_back(std::uint32_t(c));
+      }
+      b.ref[t * Band::kRefs + std::size_t(k)] = slot[c];
+    }
+  return b;
+}
+
+// Band values from the grid (all of them) and back (active ones).
+void band_gather(const Band& b, const std::vector<float>& phi, std::vector<float>& v) {
+  v.resize(b.grid.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, b.grid.size(), 4096),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t u = r.begin(); u != r.end(); ++u) v[u] = phi[b.grid[u]];
+                    });
+}
+void band_scatter(const Band& b, const std::vector<float>& v, std::vector<float>& phi) {
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, b.active, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t t = r.begin(); t != r.end(); ++t) phi[b.grid[t]] = v[t];
+  });
+}
+
 // One explicit step of level-set mean-curvature flow phi_t = kappa |grad phi|
-// at the active nodes (Jacobi: reads `phi`, writes `next`), clamped between
-// the fillet and round distances lo[t], hi[t] (kept compact, next to the
-// index list). Returns the largest move of a node next to the zero set (a
-// face neighbour across it) within `near` of it.
-double flow_step(const std::vector<std::uint32_t>& active, const std::vector<float>& phi, std::vector<float>& next,
-                 const std::vector<float>& lo, const std::vector<float>& hi, const Dims& d, const double h[3],
-                 double dt, double near) {
-  const std::size_t sx = 1, sy = d.nx, sz = d.nx * d.ny;
+// at the active nodes (Jacobi: reads `cur`, writes `next`, both band arrays),
+// clamped between the fillet and round distances lo[t], hi[t]. Returns the
+// largest move of a node next to the zero set (a face neighbour across it)
+// within `near` of it.
+double flow_step(const Band& band, const std::vector<float>& cur, std::vector<float>& next,
+                 const std::vector<float>& lo, const std::vector<float>& hi, const double h[3], double dt,
+                 double near) {
   const double ix = 1 / h[0], iy = 1 / h[1], iz = 1 / h[2];
-  const std::size_t chunks = std::max<std::size_t>(1, active.size() / 4096 + 1);
+  const std::size_t n = band.active;
+  const std::size_t chunks = std::max<std::size_t>(1, n / 4096 + 1);
   std::vector<double> moved(chunks, 0.0);
   tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t ch) {
-    const std::size_t b = active.size() * ch / chunks, e = active.size() * (ch + 1) / chunks;
+    const std::size_t b = n * ch / chunks, e = n * (ch + 1) / chunks;
     double m = 0;
     for (std::size_t t = b; t < e; ++t) {
-      const std::size_t c = active[t];
-      const double f = phi[c];
-      const double fxp = phi[c + sx], fxm = phi[c - sx], fyp = phi[c + sy], fym = phi[c - sy];
-      const double fzp = phi[c + sz], fzm = phi[c - sz];
+      const std::uint32_t* r = &band.ref[t * Band::kRefs];
+      const double f = cur[t];
+      const double fxp = cur[r[0]], fxm = cur[r[1]], fyp = cur[r[2]], fym = cur[r[3]];
+      const double fzp = cur[r[4]], fzm = cur[r[5]];
       const double px = 0.5 * (fxp - fxm) * ix, py = 0.5 * (fyp - fym) * iy, pz = 0.5 * (fzp - fzm) * iz;
       const double pxx = (fxp - 2 * f + fxm) * ix * ix, pyy = (fyp - 2 * f + fym) * iy * iy,
                    pzz = (fzp - 2 * f + fzm) * iz * iz;
-      const double pxy = 0.25 * (phi[c + sx + sy] - phi[c + sx - sy] - phi[c - sx + sy] + phi[c - sx - sy]) * ix * iy;
-      const double pxz = 0.25 * (phi[c + sx + sz] - phi[c + sx - sz] - phi[c - sx + sz] + phi[c - sx - sz]) * ix * iz;
-      const double pyz = 0.25 * (phi[c + sy + sz] - phi[c + sy - sz] - phi[c - sy + sz] + phi[c - sy - sz]) * iy * iz;
+      const double pxy = 0.25 * (cur[r[6]] - cur[r[7]] - cur[r[8]] + cur[r[9]]) * ix * iy;
+      const double pxz = 0.25 * (cur[r[10]] - cur[r[11]] - cur[r[12]] + cur[r[13]]) * ix * iz;
+      const double pyz = 0.25 * (cur[r[14]] - cur[r[15]] - cur[r[16]] + cur[r[17]]) * iy * iz;
       const double gx2 = px * px, gy2 = py * py, gz2 = pz * pz, g2 = gx2 + gy2 + gz2;
       const double num = pxx * (gy2 + gz2) + pyy * (gx2 + gz2) + pzz * (gx2 + gy2) -
                          2 * (px * py * pxy + px * pz * pxz + py * pz * pyz);
       double v = f + dt * num / (g2 + 1e-12);
       v = std::min(std::max(v, double(lo[t])), double(hi[t]));
-      next[c] = float(v);
+      next[t] = float(v);
       // Motion of the zero set: only at nodes with a face neighbour across it.
       const bool neg = f < 0;
       if (std::fabs(f) < near && ((fxp < 0) != neg || (fxm < 0) != neg || (fyp < 0) != neg || (fym < 0) != neg ||
@@ -269,15 +329,19 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
     lo_a[t] = dF[active[t]];
     hi_a[t] = dR[active[t]];
   });
-  std::vector<float> phi = dS, next = dS;
+  std::vector<float> phi = dS;
+  const Band band = make_band(active, wd);
+  std::vector<float> cur, next;
+  band_gather(band, phi, cur);
+  next = cur;
   const double dt = 0.45 / (1 / (h[0] * h[0]) + 1 / (h[1] * h[1]) + 1 / (h[2] * h[2]));
   const int max_it = p.max_iterations > 0 ? p.max_iterations : int(20 * (r / hmin) * (r / hmin)) + 100;
   DistanceParams reinit;
   reinit.band = 2 * w;
   const std::size_t sy = wd.nx, sz = wd.nx * wd.ny;
   for (int it = 1; it <= max_it && !active.empty(); ++it) {
-    const double moved = flow_step(active, phi, next, lo_a, hi_a, wd, h, dt, 1.5 * hmax);
-    phi.swap(next);
+    const double moved = flow_step(band, cur, next, lo_a, hi_a, h, dt, 1.5 * hmax);
+    cur.swap(next);
     res.iterations = it;
     res.last_change = moved / hmin;
     const bool after_reinit = it > 1 && (it - 1) % p.reinit_every == 0;  // the first step relaxes the new field
@@ -288,6 +352,7 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
     // Re-distancing keeps the field healthy while the zero set moves fast;
     // near convergence it only perturbs the flow, so it stops there.
     if (it % p.reinit_every == 0 && res.last_change > 10 * p.tolerance) {
+      band_scatter(band, cur, phi);
       // Re-distance away from the zero set; nodes next to it keep their values
       // so the zero set does not move.
       const auto t0 = std::chrono::steady_clock::now();
@@ -305,9 +370,11 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
       });
       phi.swap(d);
       for (std::size_t c : active) phi[c] = std::min(std::max(phi[c], dF[c]), dR[c]);
-      next = phi;
+      band_gather(band, phi, cur);
+      next = cur;
     }
   }
+  if (!active.empty()) band_scatter(band, cur, phi);
   if (active.empty()) res.converged = true;
 
   stage.emplace("tighten.redistance");
@@ -319,6 +386,7 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
                   full.begin() + long(wlo[0] + fd.nx * (jw + wlo[1] + fd.ny * (kw + wlo[2]))));
   });
   std::vector<float>().swap(phi);
+  std::vector<float>().swap(cur);
   std::vector<float>().swap(next);
   const std::vector<float> d = signed_distance(full, fd, gf, {});
   res.distance = Volume(VoxelType::f32, fd, gf);
