@@ -125,6 +125,7 @@ struct Particle {
   double lambda = kLambda0;
   double energy = 0;
   double delta = 0;   // energy change of the last move (E_new - E_old, <= 0)
+  double moved = 0;   // length of the last move / spacing
   std::uint64_t id = 0;
   std::int32_t neighbours = 0;
 };
@@ -316,12 +317,15 @@ class Engine {
     const double radius = radius_bound(spacing_cap);
     const double margin = kGatherMargin * P.spacing;
     bool full_reach = false;
-    (void)cell;
-    gather_list(P.x, radius + margin, i, buf);
+    if (use_lists_)
+      gather_list(P.x, radius + margin, i, buf);
+    else
+      gather(P.x, radius + margin, i, cell, buf);
     Vec3 v;
     const double e0 = energy_at(P.x, P.normal, P.attr, buf, &v, nullptr);
     P.energy = e0;
     P.delta = 0;
+    P.moved = 0;
     const double gg = norm2(P.grad);
     const Vec3 vt = v - P.grad * (dot(P.grad, v) / gg);
     if (!(norm2(vt) > 0)) return;
@@ -336,11 +340,15 @@ class Engine {
       if (on_surface && (!varying || local_spacing(attr) <= spacing_cap)) {
         const Vec3 n = normalized(e.g);
         if (!full_reach && norm2(x - P.x) > margin * margin) {
-          gather_list(P.x, radius + P.spacing, i, buf);
+          if (use_lists_)
+            gather_list(P.x, radius + P.spacing, i, buf);
+          else
+            gather(P.x, radius + P.spacing, i, cell, buf);
           full_reach = true;
         }
         const double e1 = energy_at(x, n, attr, buf, nullptr, nullptr);
         if (e1 <= e0) {
+          P.moved = std::sqrt(norm2(x - P.x)) / P.spacing;
           P.x = x;
           pos_[i] = x;
           P.grad = e.g;
@@ -362,12 +370,16 @@ class Engine {
   }
 
   // --- bins -------------------------------------------------------------------------
-  void rebin();
+  // Sort the particles into bins of width r_max + 2 d_max (a 3x3x3 gather
+  // with one sweep of drift), or wide enough for the lists' reach
+  // (`for_lists`, see build_lists()).
+  void rebin(bool for_lists = false);
   // Cached neighbour lists (SPEC §3.7), built right after rebin(): particle
-  // i lists every j within L_i = r_max + t_i + k_i + k_max of it, where t_i
-  // bounds i's trial step (its spacing, × kSpacingSlack where the spacing
-  // varies) and k = kListSkin × spacing is the drift allowed before a
-  // rebuild. Lists are rebuilt when any particle drifted farther than its k_i
+  // i lists every j within L_i + k_j of it, L_i = radius_bound(t_i t_i s_i) +
+  // t_i s_i + k_i, where t_i = kSpacingSlack where the spacing varies (its
+  // spacing may grow that much before a rebuild, and a move's cap by that much
+  // again), else 1, and k = kListSkin × spacing is the drift allowed before a
+  // rebuild. All local: small particles keep short lists in a graded field. Lists are rebuilt when any particle drifted farther than its k_i
   // or its spacing outgrew t_i's assumption; then every particle within
   // interaction range of any trial position is still listed. L_i <= the bin
   // width, so the bin colouring still keeps parallel updates apart.
@@ -443,6 +455,8 @@ class Engine {
   std::vector<Vec3> list_x_;
   std::vector<double> list_s_;
   bool lists_valid_ = false;
+  bool use_lists_ = false;  // sweeps gather from the lists (else from the bins)
+  double max_move_ = 1e300; // largest move of the last sweep / spacing
 
   tbb::enumerable_thread_specific<std::vector<Cand>> tls_;
   std::atomic<std::uint64_t> evals_{0};
@@ -451,7 +465,7 @@ class Engine {
   std::uint64_t iteration_ = 0;
 };
 
-void Engine::rebin() {
+void Engine::rebin(bool for_lists) {
   const std::size_t n = parts_.size();
   Box bb;
   double dmax = 0, hmax = 0;
@@ -473,9 +487,7 @@ void Engine::rebin() {
   }
   d_max_ = dmax;
   lists_valid_ = false;
-  // Wide enough for the neighbour lists' reach (see build_lists()), which
-  // also covers a plain 3x3x3 gather with one sweep of drift (r_max + 2 d_max).
-  double w = r_max_ + (kSpacingSlack + 2 * kListSkin) * d_max_;
+  double w = r_max_ + (for_lists ? kSpacingSlack + 2 * kListSkin : 2.0) * d_max_;
   // Keep the grid's index space reasonable (wider bins are always correct).
   const Vec3 ext = bb.size();
   const double longest = std::max({ext.x, ext.y, ext.z, 0.0});
@@ -590,14 +602,18 @@ void Engine::build_lists() {
     const std::int32_t* nb = &cell_nbr_[c * 27];
     for (std::uint32_t i = cell_start_[c]; i < cell_start_[c + 1]; ++i) {
       const Particle& P = parts_[i];
-      const double reach = r_max_ + step_factor * P.spacing + kListSkin * (P.spacing + d_max_);
-      const double r2 = reach * reach;
+      // i's reach: interaction radius at the largest spacing its trial moves
+      // may reach before a rebuild, plus the longest trial step, plus its own
+      // drift; each candidate j adds its own drift allowance.
+      const double reach =
+          radius_bound(step_factor * step_factor * P.spacing) + step_factor * P.spacing + kListSkin * P.spacing;
       std::uint32_t count = 0, at = fill ? nbr_start_[i] : 0;
       for (int k = 0; k < 27; ++k) {
         if (nb[k] < 0) continue;
         const std::size_t cc = std::size_t(nb[k]);
         for (std::uint32_t q = cell_start_[cc]; q < cell_start_[cc + 1]; ++q) {
-          if (q == i || norm2(pos_[q] - P.x) >= r2) continue;
+          const double rq = reach + kListSkin * parts_[q].spacing;
+          if (q == i || norm2(pos_[q] - P.x) >= rq * rq) continue;
           if (fill)
             nbr_[at++] = q;
           else
@@ -766,9 +782,11 @@ double Engine::sweep(double& energy) {
   }
   double de = 0;
   energy = 0;
+  max_move_ = 0;
   for (const Particle& q : parts_) {
     de += q.delta;
     energy += q.energy;
+    max_move_ = std::max(max_move_, q.moved);
   }
   return -2 * de;
 }
@@ -1032,12 +1050,22 @@ bool Engine::relax_level(int level, int levels) {
   int since = 0, refills = 0;
   for (int it = 0; it < p_.max_iters; ++it) {
     Stopwatch sw;
-    if (lists_stale()) {
-      rebin();
+    if (!use_lists_) {
+      rebin();  // gather from the bins, rebuilt every sweep
+    } else if (lists_stale()) {
+      rebin(true);
       build_lists();
     }
     double e = 0;
     const double change = sweep(e);
+    // Lists pay off once particles move slowly (a list then serves many
+    // sweeps); while they still move fast, the bins rebuilt every sweep are
+    // cheaper than lists rebuilt every sweep.
+    const bool slow = max_move_ < 0.25 * kListSkin;
+    if (slow != use_lists_) {
+      use_lists_ = slow;
+      lists_valid_ = false;
+    }
     res_.seconds_relax += sw.seconds();
     ++iteration_;
     ++res_.iterations;
