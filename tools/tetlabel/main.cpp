@@ -221,7 +221,8 @@ int main(int argc, char** argv) {
                       "tangential smoothing with every vertex projected back onto F = iso, or with --materials "
                       "onto its interface f_a = f_b while junction curves and corners stay; topology kept, no "
                       "triangle folded, crossings checked). 0 = the plain Delaunay surface. --tets still writes "
-                      "the Delaunay tetrahedra, whose boundary is the unimproved surface")
+                      "the Delaunay tetrahedra, whose boundary is the unimproved surface. Skipped, with a "
+                      "warning, when the Delaunay surface is not a closed manifold")
       ->capture_default_str()
       ->check(CLI::Range(0, 100));
   tool.app.add_option("--tets", tets, "Also write the inside tetrahedra as a MEDIT .mesh");
@@ -298,10 +299,13 @@ int main(int argc, char** argv) {
                std::to_string(t.nonmanifold_vertices) + " non-manifold vertices");
     if (buried > 0)
       pm::warn(std::to_string(buried) + " particles are not on the surface (off the isosurface, or too close)");
-    if (improve > 0) {
-      if (!t.closed_manifold())
-        throw pm::InputError(pm::quote(points) + ": --improve needs a closed manifold surface, the Delaunay surface "
-                             "is not one (see the warning above); rerun without --improve to inspect it");
+    if (improve > 0 && !t.closed_manifold()) {
+      // Flips and the crossing check need a closed manifold: keep the plain
+      // surface (meshstats reports what is wrong with it) rather than fail.
+      pm::warn("--improve skipped: the Delaunay surface is not a closed manifold (see above); the plain surface "
+               "is written");
+      st["improve"] = {{"rounds", improve}, {"skipped", "the Delaunay surface is not a closed manifold"}};
+    } else if (improve > 0) {
       pm::ScopedStage s("improve");
       pm::SurfaceImproveParams ip;
       ip.rounds = improve;
