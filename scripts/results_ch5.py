@@ -252,7 +252,7 @@ def write_markdown(results, path, args):
               (f"; whole `make ch5` run including meshstats and renders: {res['pipeline_wall_seconds']:.1f} s."
                if res["pipeline_wall_seconds"] is not None else
                " (pipeline outputs reused from an earlier run: the stage times are that run's).")]
-        cg = res["rows"][2]
+        cg = next(r for r in res["rows"] if r["method"] == "CGAL Mesh_3")
         L += [f"CGAL facet size {cg['facet_size']:.4g} after {cg['search_runs']} Mesh_3 run(s).", ""]
         im = res["images"]
         L += ["| particles (ch5) | marching cubes | CGAL Mesh_3 |", "|---|---|---|",
@@ -270,9 +270,13 @@ def main():
     ap.add_argument("--datasets", default="", help="comma-separated names (default: all present)")
     ap.add_argument("--threads", type=int, default=0)
     ap.add_argument("--reuse", action="store_true", help="keep finished pipeline outputs in the work folder")
+    ap.add_argument("--markdown-only", action="store_true", help="rewrite ch5.md from ch5.json, run nothing")
     ap.add_argument("make_vars", nargs="*", help="extra VAR=value for every make run (e.g. PTOL=1e-4)")
     args = ap.parse_args()
     args.bin = os.path.abspath(args.bin)
+    if args.markdown_only:
+        write_markdown(load(os.path.join(args.docs, "ch5.json")), os.path.join(args.docs, "ch5.md"), args)
+        return
     names = [d[0] for d in DATASETS]
     wanted = args.datasets.split(",") if args.datasets else names
     for w in wanted:
