@@ -111,6 +111,18 @@ def case_particles():
             row("particles", "brain mask surface", None, "", note="../shared/data absent: skipped")
 
 
+def stage_rows(case, out, stages, digits):
+    """One row per pipeline stage with the total seconds of its --stats JSON in `out`; returns their sum."""
+    total = 0.0
+    for stage in stages:
+        p = os.path.join(out, f"{stage}.json")
+        if os.path.exists(p):
+            t = json.load(open(p))["seconds"]["total"]
+            total += t
+            row(case, f"stage {stage}", round(t, digits), "s")
+    return total
+
+
 def case_ch5():
     """Whole Chapter 5 pipeline on the 256^3 brain mask (Makefile.pipeline ch5, 2 threads), per-stage
     times from the stages' --stats JSON, and CGAL Mesh_3 (baseline cgal) on the same field at the same
@@ -127,14 +139,8 @@ def case_ch5():
                        f"OUT={out}", f"BIN={BIN}", "THREADS=2", "FLAGS=-q", f"EPS={eps}"])
         q = json.load(open(os.path.join(out, "quality.json")))
         n = q["vertices"]
-        total = 0.0
-        for stage in ("morph", "tighten", "medialaxis", "sizingfield", "gradlimit", "mcinit", "particles",
-                      "tetlabel"):
-            p = os.path.join(out, f"{stage}.json")
-            if os.path.exists(p):
-                t = json.load(open(p))["seconds"]["total"]
-                total += t
-                row("ch5", f"stage {stage}", round(t, 2), "s")
+        total = stage_rows("ch5", out, ("morph", "tighten", "medialaxis", "sizingfield", "gradlimit", "mcinit",
+                                        "particles", "tetlabel"), 2)
         row("ch5", "brain mask to mesh (stages, 2 threads)", round(total, 1), "s", "~100k vertices < 120 s",
             total < 120 and 80000 <= n <= 120000, f"{n} vertices (EPS={eps}); make wall {wall:.1f} s incl. "
             f"meshstats + renders")
@@ -262,14 +268,8 @@ def case_ch6():
         _, wall = run(["make", "-s", "-f", os.path.join(ROOT, "Makefile.pipeline"), "ch6", f"INPUT={frog}",
                        f"OUT={out}", f"BIN={BIN}", "THREADS=2", "FLAGS=-q", "R=2", "DOWNSAMPLE=2",
                        "MIN_VOXELS=300", f"MERGE={merge}"])
-        total = 0.0
-        for stage in ("volconv", "morph", "tighten", "sizingfield", "gradlimit", "mcinit", "multiparticles",
-                      "tetlabel"):
-            p = os.path.join(out, f"{stage}.json")
-            if os.path.exists(p):
-                t = json.load(open(p))["seconds"]["total"]
-                total += t
-                row("ch6", f"stage {stage}", round(t, 1), "s")
+        total = stage_rows("ch6", out, ("volconv", "morph", "tighten", "sizingfield", "gradlimit", "mcinit",
+                                        "multiparticles", "tetlabel"), 1)
         q = json.load(open(os.path.join(out, "quality.json")))
         n = q["overall"]["vertices"]
         row("ch6", "frog, 5 materials, label map to meshes", round(wall, 1), "s", "< 600 s", wall < 600,

@@ -314,20 +314,8 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
   // band nodes) skip the neighbourhood search and the propagation.
   const double far = p.band > 0 ? p.band + 2 * hmax : kInf, far2 = far * far;
   const float rhof = float(rho);
-  auto disc_d2 = [&](const double x[3], std::int32_t b) {
-    const Disc& D = disc[std::size_t(b)];
-    const float v0 = float(double(D.p[0]) - x[0]), v1 = float(double(D.p[1]) - x[1]),
-                v2 = float(double(D.p[2]) - x[2]);
-    const float vv = v0 * v0 + v1 * v1 + v2 * v2;
-    if (D.m[0] == 0 && D.m[1] == 0 && D.m[2] == 0) return double(vv);
-    const float a = v0 * D.m[0] + v1 * D.m[1] + v2 * D.m[2];
-    const float lat2 = std::max(0.f, vv - a * a);
-    if (lat2 <= rhof * rhof) return double(a * a);
-    const float lat = std::sqrt(lat2) - rhof;
-    return double(a * a + lat * lat);
-  };
-  // The same, or infinity when it is certainly >= bound (the normal part alone
-  // is, which spares the square root).
+  // Squared distance from x to disc b, or infinity when it is certainly >= bound
+  // (the normal part alone is, which spares the square root).
   auto disc_d2_below = [&](const double x[3], std::int32_t b, double bound) {
     const Disc& D = disc[std::size_t(b)];
     const float v0 = float(double(D.p[0]) - x[0]), v1 = float(double(D.p[1]) - x[1]),
@@ -342,6 +330,7 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
     const float lat = std::sqrt(lat2) - rhof;
     return double(aa + lat * lat);
   };
+  auto disc_d2 = [&](const double x[3], std::int32_t b) { return disc_d2_below(x, b, kInf); };
   // Neighbouring nodes mostly share their nearest band node, so each row
   // keeps the candidate discs of the last (band node, side) pair it used.
   tbb::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
