@@ -33,7 +33,7 @@ int main(int argc, char** argv) {
                                                         "most 20 (R/h)^2 + 100)")->capture_default_str();
   tool.app.add_option("--tolerance", p.tolerance, "Converged when the zero set moves less than this per step, "
                                                   "voxels")->capture_default_str();
-  tool.app.add_option("--reinit", p.reinit_every, "Re-distance the flowing field every N steps")->capture_default_str();
+  tool.app.add_option("--reinit", p.reinit_every, "Every N flow steps, re-distance the flowing field if |grad phi| at the zero set is off 1 by > 0.5")->capture_default_str();
   tool.app.add_flag("--positive-inside", p.positive_inside, "Write positive inside, negative outside (Chapter 6)");
   bool gzip = false;
   tool.app.add_flag("--gzip", gzip, "Compress the output where the format allows (float distances shrink by only "
@@ -65,7 +65,7 @@ int main(int argc, char** argv) {
           pm::write_volume(r.distance, path, wp);
           outputs.push_back(path);
           per[std::to_string(label)] = {{"inside_voxels", r.inside_voxels}, {"mortar_nodes", r.mortar_nodes},
-                                        {"iterations", r.iterations}, {"converged", r.converged},
+                                        {"iterations", r.iterations}, {"reinits", r.reinits}, {"converged", r.converged},
                                         {"last_change_voxels", r.last_change}};
         });
       } catch (const pm::InputError& e) {
@@ -95,6 +95,6 @@ int main(int argc, char** argv) {
     pm::write_volume(r.distance, out, wp);
     st["outputs"] = {out};
     st["counts"] = {{"inside_voxels", r.inside_voxels}, {"mortar_nodes", r.mortar_nodes}, {"iterations", r.iterations},
-                    {"converged", r.converged}, {"pad", r.pad}, {"last_change_voxels", r.last_change}};
+                    {"reinits", r.reinits}, {"converged", r.converged}, {"pad", r.pad}, {"last_change_voxels", r.last_change}};
   });
 }

@@ -165,6 +165,34 @@ double flow_step(const Band& band, const std::vector<float>& cur, std::vector<fl
   return *std::max_element(moved.begin(), moved.end());
 }
 
+// Re-distance when |grad phi| at the zero set leaves [1 - d, 1 + d] with d:
+constexpr double kReinitDefect = 0.5;
+
+// Largest deviation of |grad phi| from 1 (central differences, world units)
+// over the active nodes next to the zero set (a face neighbour across it).
+double gradient_defect(const Band& band, const std::vector<float>& cur, const double h[3]) {
+  const std::size_t n = band.active;
+  const std::size_t chunks = std::max<std::size_t>(1, n / 4096 + 1);
+  std::vector<double> worst(chunks, 0.0);
+  tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t ch) {
+    double w = 0;
+    for (std::size_t t = n * ch / chunks, e = n * (ch + 1) / chunks; t < e; ++t) {
+      const std::uint32_t* r = &band.ref[t * Band::kRefs];
+      const float f = cur[t];
+      const bool neg = f < 0;
+      bool across = false;
+      for (int k = 0; k < 6; ++k) across |= (cur[r[k]] < 0) != neg;
+      if (!across) continue;
+      const double px = (double(cur[r[0]]) - cur[r[1]]) / (2 * h[0]);
+      const double py = (double(cur[r[2]]) - cur[r[3]]) / (2 * h[1]);
+      const double pz = (double(cur[r[4]]) - cur[r[5]]) / (2 * h[2]);
+      w = std::max(w, std::fabs(std::sqrt(px * px + py * py + pz * pz) - 1));
+    }
+    worst[ch] = w;
+  });
+  return *std::max_element(worst.begin(), worst.end());
+}
+
 }  // namespace
 
 TightenResult tighten(const Volume& mask, const TightenParams& p) {
@@ -277,7 +305,13 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
 
   const double h[3] = {gw.spacing(0), gw.spacing(1), gw.spacing(2)};
   const double hmin = std::min(h[0], std::min(h[1], h[2])), hmax = std::max(h[0], std::max(h[1], h[2]));
-  const double w = 3 * hmax;  // half-width of the flowing band around the mortar
+  // Half-width of the flowing band around the mortar: the curvature at a
+  // node next to the zero set reads neighbours up to sqrt(2) voxels away, and
+  // the ring beyond them only has to stay a sane level-set function. Two
+  // voxels instead of three: a third fewer nodes and fewer steps to converge;
+  // the zero set moves by < 0.07 voxel and its curvature bound is unchanged
+  // (256^3 bench mask, r = 2).
+  const double w = 2 * hmax;  // half-width of the flowing band around the mortar
 
   // Signed distances of S, the round (opening) and the fillet (closing).
   // Accurate values are needed near the levels -r and +r of dS (they define
@@ -335,7 +369,7 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
   band_gather(band, phi, cur);
   next = cur;
   const double dt = 0.45 / (1 / (h[0] * h[0]) + 1 / (h[1] * h[1]) + 1 / (h[2] * h[2]));
-  const int max_it = p.max_iterations > 0 ? p.max_iterations : int(20 * (r / hmin) * (r / hmin)) + 100;
+  const int max_it = p.max_iterations > 0 ? p.max_iterations : int(40 * (r / hmin) * (r / hmin)) + 200;
   DistanceParams reinit;
   reinit.band = 2 * w;
   const std::size_t sy = wd.nx, sz = wd.nx * wd.ny;
@@ -351,7 +385,13 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
     }
     // Re-distancing keeps the field healthy while the zero set moves fast;
     // near convergence it only perturbs the flow, so it stops there.
-    if (it % p.reinit_every == 0 && res.last_change > 10 * p.tolerance) {
+    // Re-distance only when the field has drifted from a distance function
+    // at the zero set (the clamping to the round and fillet distances keeps it
+    // close to one in most cases, and each re-distancing costs a transform of
+    // the working box).
+    if (it % p.reinit_every == 0 && res.last_change > 10 * p.tolerance &&
+        gradient_defect(band, cur, h) > kReinitDefect) {
+      ++res.reinits;
       band_scatter(band, cur, phi);
       // Re-distance away from the zero set; nodes next to it keep their values
       // so the zero set does not move.

@@ -33,12 +33,13 @@ struct TightenParams {
   /// interpolation of the 0/1 mask, level 0.5), for r below a voxel or so.
   /// The output grid has spacing h/K and (n-1)K+1 nodes per axis.
   int upsample = 1;
-  /// Flow steps; 0 = automatic: until converged, at most 20 (r/h)² + 100.
+  /// Flow steps; 0 = automatic: until converged, at most 40 (r/h)² + 200.
   int max_iterations = 0;
   /// Converged when no node next to the zero set moves more than
   /// tolerance · h in a step (voxels).
   double tolerance = 1e-3;
-  /// Re-distance the flowing field every N steps (>= 1), while the zero set
+  /// Check the flowing field every N steps (>= 1) and re-distance it when
+  /// |grad phi| at the zero set is off 1 by more than 0.5 while the zero set
   /// still moves more than 10 · tolerance a step (later it only perturbs it).
   int reinit_every = 25;
   bool positive_inside = false;  ///< negate the output (Chapter 6 indicators)
@@ -62,6 +63,7 @@ struct TightenResult {
   Volume round, fillet;
   std::size_t pad = 0;          ///< voxels of the input grid added on every side (0 = none)
   int iterations = 0;           ///< flow steps taken
+  int reinits = 0;              ///< re-distancings of the flowing field
   bool converged = false;
   double last_change = 0;       ///< largest move of the last step, voxels
   std::size_t mortar_nodes = 0; ///< nodes where the round and fillet differ (the flow runs there)
