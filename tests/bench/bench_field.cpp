@@ -8,7 +8,9 @@
 // bound by memory latency), 1 a random walk with one-voxel steps (coherent
 // like consecutive particles; bound by arithmetic).
 //
-// BM_*_batch: the same points through the batch calls, kBatch per call.
+// BM_*_batch: the same points through the batch calls, kBatch per call
+// (BM_value_batch) or `batch` per call, with and without evaluation in brick
+// order (`sort`, VolumeFieldParams::sort_min_batch).
 // BM_value_gradient_baseline_isa: with the AVX2 path disabled (what a CPU
 // without AVX2 runs). BM_random_lines: the machine's ceiling for random
 // access, independent 64-byte lines fetched from a 64 MiB buffer with
@@ -17,6 +19,7 @@
 #include <benchmark/benchmark.h>
 
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <cstdlib>
 #include <random>
@@ -60,6 +63,24 @@ const pm::VolumeField& field(bool mix) {
   static const pm::VolumeField bspline(test_volume(), pm::VolumeFieldParams{}, "bench");
   static const pm::VolumeField chapter5(test_volume(), pm::VolumeFieldParams::chapter5_mix(), "bench");
   return mix ? chapter5 : bspline;
+}
+
+// sort = 0: batches never evaluated in brick order (the points' own order);
+// 1: always (sort_min_batch = 2). The default (sort_min_batch = 0) sorts
+// batches from 262144 points on this 256³ field: it is sort:0 below that
+// size, sort:1 from there.
+const pm::VolumeField& field(bool mix, bool sort) {
+  static const auto with = [](pm::VolumeFieldParams p, std::size_t sort_min) {
+    p.sort_min_batch = sort_min;
+    return p;
+  };
+  static const pm::VolumeField never[2] = {
+      pm::VolumeField(test_volume(), with({}, SIZE_MAX), "bench"),
+      pm::VolumeField(test_volume(), with(pm::VolumeFieldParams::chapter5_mix(), SIZE_MAX), "bench")};
+  static const pm::VolumeField always[2] = {
+      pm::VolumeField(test_volume(), with({}, 2), "bench"),
+      pm::VolumeField(test_volume(), with(pm::VolumeFieldParams::chapter5_mix(), 2), "bench")};
+  return sort ? always[mix] : never[mix];
 }
 
 const pm::VolumeField& baseline_isa_field() {
@@ -153,41 +174,47 @@ void BM_value_batch(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * kBatch);
 }
 
-void value_gradient_batch(benchmark::State& state, const pm::VolumeField& f, bool walk) {
+void value_gradient_batch(benchmark::State& state, const pm::VolumeField& f, bool walk,
+                          std::size_t batch = kBatch) {
   const auto& pts = points(walk);
-  std::vector<double> v(kBatch);
-  std::vector<pm::Vec3> g(kBatch);
+  std::vector<double> v(batch);
+  std::vector<pm::Vec3> g(batch);
   std::size_t i = 0;
   for (auto _ : state) {
-    f.value_gradient_batch(&pts[i], kBatch, v.data(), g.data());
+    f.value_gradient_batch(&pts[i], batch, v.data(), g.data());
     benchmark::DoNotOptimize(v.data());
     benchmark::DoNotOptimize(g.data());
     benchmark::ClobberMemory();
-    i = (i + kBatch) & (kPoints - 1);
+    i = (i + batch) & (kPoints - 1);
   }
-  state.SetItemsProcessed(state.iterations() * kBatch);
+  state.SetItemsProcessed(state.iterations() * batch);
 }
 
+// Batches of `batch` points (a power of two up to kPoints, consecutive
+// slices of the same point set), sorted into brick order or not (`sort`);
+// the sort runs inside the timed call.
 void BM_value_gradient_batch(benchmark::State& state) {
-  value_gradient_batch(state, field(state.range(0) != 0), state.range(1) != 0);
+  value_gradient_batch(state, field(state.range(0) != 0, state.range(3) != 0), state.range(1) != 0,
+                       std::size_t(state.range(2)));
 }
 
 void BM_evaluate_batch(benchmark::State& state) {
-  const pm::VolumeField& f = field(state.range(0) != 0);
+  const pm::VolumeField& f = field(state.range(0) != 0, state.range(3) != 0);
   const auto& pts = points(state.range(1) != 0);
-  std::vector<double> v(kBatch);
-  std::vector<pm::Vec3> g(kBatch);
-  std::vector<pm::Mat3> h(kBatch);
+  const std::size_t batch = std::size_t(state.range(2));
+  std::vector<double> v(batch);
+  std::vector<pm::Vec3> g(batch);
+  std::vector<pm::Mat3> h(batch);
   std::size_t i = 0;
   for (auto _ : state) {
-    f.evaluate_batch(&pts[i], kBatch, v.data(), g.data(), h.data());
+    f.evaluate_batch(&pts[i], batch, v.data(), g.data(), h.data());
     benchmark::DoNotOptimize(v.data());
     benchmark::DoNotOptimize(g.data());
     benchmark::DoNotOptimize(h.data());
     benchmark::ClobberMemory();
-    i = (i + kBatch) & (kPoints - 1);
+    i = (i + batch) & (kPoints - 1);
   }
-  state.SetItemsProcessed(state.iterations() * kBatch);
+  state.SetItemsProcessed(state.iterations() * batch);
 }
 
 // B-spline value+gradient without the AVX2 path, single points (batch:0)
@@ -250,8 +277,21 @@ BENCHMARK(BM_value)->ArgNames({"mix", "walk"})->ArgsProduct({{0, 1}, {0, 1}});
 BENCHMARK(BM_value_gradient)->ArgNames({"mix", "walk"})->ArgsProduct({{0, 1}, {0, 1}});
 BENCHMARK(BM_evaluate)->ArgNames({"mix", "walk"})->ArgsProduct({{0, 1}, {0, 1}});
 BENCHMARK(BM_value_batch)->ArgNames({"mix", "walk"})->ArgsProduct({{0, 1}, {0, 1}});
-BENCHMARK(BM_value_gradient_batch)->ArgNames({"mix", "walk"})->ArgsProduct({{0, 1}, {0, 1}});
-BENCHMARK(BM_evaluate_batch)->ArgNames({"mix", "walk"})->ArgsProduct({{0, 1}, {0, 1}});
+// Batch sizes: 256 (kBatch) as before, then 4k, 64k, 256k and 1M points
+// (B-spline, random points) with and without the brick-order sort; the
+// Chapter-5 mix at random points and the B-spline random walk at 1M.
+constexpr std::int64_t kSizes[] = {4096, 65536, 262144, std::int64_t(kPoints)};
+void batch_args(benchmark::internal::Benchmark* b) {
+  b->ArgNames({"mix", "walk", "batch", "sort"});
+  for (int mix : {0, 1})
+    for (int walk : {0, 1}) b->Args({mix, walk, std::int64_t(kBatch), 0});
+  for (std::int64_t n : kSizes)
+    for (int sort : {0, 1}) b->Args({0, 0, n, sort});
+  for (int sort : {0, 1}) b->Args({1, 0, std::int64_t(kPoints), sort});
+  for (int sort : {0, 1}) b->Args({0, 1, std::int64_t(kPoints), sort});
+}
+BENCHMARK(BM_value_gradient_batch)->Apply(batch_args);
+BENCHMARK(BM_evaluate_batch)->Apply(batch_args);
 BENCHMARK(BM_value_gradient_baseline_isa)->ArgNames({"mix", "walk", "batch"})->ArgsProduct({{0}, {0, 1}, {0, 1}});
 BENCHMARK(BM_random_lines)->ArgNames({"ahead"})->Arg(0)->Arg(8)->Arg(16)->Arg(32)->Arg(64);
 

@@ -9,6 +9,7 @@
 #include <limits>
 #include <random>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "pm/base/error.h"
@@ -376,14 +377,16 @@ const VolumeFieldParams kKernelCombos[] = {
     kBspline, kCatmullRom, VolumeFieldParams::chapter5_mix(), {KernelType::bspline, KernelType::catmull_rom}};
 
 // Compares a batch call to single-point calls bit for bit, over sub-batches of
-// every length 0..9 (shorter and longer than the prefetch pipeline) and the rest.
-void expect_batch_matches_single(const ScalarField& f, const std::vector<Vec3>& pts, const std::string& what) {
+// every length 0..9 (shorter and longer than the prefetch pipeline) and the
+// rest, or of the given lengths in turn (then the rest).
+void expect_batch_matches_single(const ScalarField& f, const std::vector<Vec3>& pts, const std::string& what,
+                                 const std::vector<std::size_t>& lengths = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9}) {
   const std::size_t n = pts.size();
   std::vector<double> fv(n), fg(n), fe(n);
   std::vector<Vec3> gg(n), ge(n);
   std::vector<Mat3> he(n);
   for (std::size_t at = 0, len = 0; at < n; ++len) {
-    const std::size_t m = len < 10 ? std::min(len, n - at) : n - at;
+    const std::size_t m = len < lengths.size() ? std::min(lengths[len], n - at) : n - at;
     f.value_batch(pts.data() + at, m, fv.data() + at);
     f.value_gradient_batch(pts.data() + at, m, fg.data() + at, gg.data() + at);
     f.evaluate_batch(pts.data() + at, m, fe.data() + at, ge.data() + at, he.data() + at);
@@ -458,6 +461,116 @@ TEST(VolumeField, Avx2PathGivesTheBaselineBits) {
     fast.value_batch(pts.data(), n, f1.data());
     for (std::size_t k = 0; k < n; ++k) ASSERT_EQ(bits(f0[k]), bits(f1[k])) << base.describe() << " point " << k;
   }
+}
+
+// n points: uniform in index space over [-3, n_a + 2] (inside, the clamped
+// band and beyond) with the awkward points (border nodes, far, infinite,
+// NaN) mixed in at random places. World units.
+std::vector<Vec3> many_points(const Volume& v, std::size_t n, unsigned seed) {
+  std::vector<Vec3> pts = awkward_points(v, seed);
+  std::mt19937 rng(seed);
+  while (pts.size() < n) {
+    Vec3 t;
+    for (int a = 0; a < 3; ++a) t[a] = std::uniform_real_distribution<double>(-3.0, double(v.dims()[a]) + 2.0)(rng);
+    pts.push_back(v.geometry().index_to_world(t));
+  }
+  std::shuffle(pts.begin(), pts.end(), rng);
+  return pts;
+}
+
+TEST(VolumeField, SortedBatchIsBitIdenticalToSinglePointCalls) {
+  // Batches evaluated in brick order (sort_min_batch) against single-point
+  // calls: sub-batch lengths straddling the threshold, every kernel pair,
+  // both code paths. Brick counts: 1 (4x2x2), 80 (13x7x9: one radix digit)
+  // and 1100 (37x22x19: two digits from ~64 points on).
+  constexpr std::size_t kThreshold = 100;
+  const std::vector<std::size_t> lengths = {1, 2, kThreshold - 1, kThreshold, kThreshold + 1, 3, 1000, 64};
+  for (const Dims d : {Dims{4, 2, 2}, Dims{13, 7, 9}, Dims{37, 22, 19}}) {
+    const Volume v = random_volume(d, oblique_geometry(), 31);
+    const std::vector<Vec3> pts = many_points(v, 3000, 9);
+    for (VolumeFieldParams p : kKernelCombos)
+      for (bool avx2 : {true, false}) {
+        p.allow_avx2 = avx2;
+        p.sort_min_batch = kThreshold;
+        const VolumeField f(v, p);
+        ASSERT_FALSE(f.sorts_batch(kThreshold - 1));
+        ASSERT_TRUE(f.sorts_batch(kThreshold));
+        const std::string what = f.describe() + (f.uses_avx2() ? " avx2" : " baseline") + " sorted from 100";
+        expect_batch_matches_single(f, pts, what, lengths);
+        p.sort_min_batch = 2;  // every batch but single points, short ones too
+        const VolumeField all(v, p);
+        expect_batch_matches_single(all, pts, what + " (from 2)");
+      }
+  }
+}
+
+TEST(VolumeField, SortedBatchBeyondOneSortChunk) {
+  // Batches are sorted 2^20 points at a time: one batch across that boundary.
+  const Volume v = random_volume(Dims{37, 22, 19}, oblique_geometry(), 5);
+  const std::vector<Vec3> pts = many_points(v, (std::size_t(1) << 20) + 1001, 3);
+  VolumeFieldParams p = VolumeFieldParams::chapter5_mix();
+  p.sort_min_batch = 2;
+  const VolumeField f(v, p);
+  std::vector<double> fb(pts.size());
+  std::vector<Vec3> gb(pts.size());
+  f.value_gradient_batch(pts.data(), pts.size(), fb.data(), gb.data());
+  std::size_t differ = 0, first = pts.size();
+  for (std::size_t k = 0; k < pts.size(); ++k) {
+    Vec3 g;
+    const double v1 = f.value_gradient(pts[k], g);
+    const bool same = bits(v1) == bits(fb[k]) && bits(g.x) == bits(gb[k].x) && bits(g.y) == bits(gb[k].y) &&
+                      bits(g.z) == bits(gb[k].z);
+    if (!same && differ++ == 0) first = k;
+  }
+  EXPECT_EQ(differ, 0u) << "sorted batch of " << pts.size() << " points differs from single-point calls at "
+                        << differ << " points, first " << first;
+}
+
+TEST(VolumeField, SortedBatchesFromSeveralThreads) {
+  // The sort's scratch is per thread: concurrent batches of different sizes
+  // on one field must not disturb each other.
+  const Volume v = random_volume(Dims{37, 22, 19}, oblique_geometry(), 8);
+  VolumeFieldParams p;
+  p.sort_min_batch = 2;
+  const VolumeField f(v, p);
+  const std::vector<Vec3> pts = many_points(v, 20000, 4);
+  std::vector<double> ref(pts.size());
+  std::vector<Vec3> gref(pts.size());
+  for (std::size_t k = 0; k < pts.size(); ++k) ref[k] = f.value_gradient(pts[k], gref[k]);
+  constexpr int kThreads = 4;
+  std::vector<std::size_t> bad(kThreads, 0);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < kThreads; ++t)
+    threads.emplace_back([&, t] {
+      const std::size_t len = std::size_t(97) << t;  // 97 .. 776 points per call
+      std::vector<double> fv(len);
+      std::vector<Vec3> gv(len);
+      for (int rep = 0; rep < 20; ++rep)
+        for (std::size_t at = 0; at + len <= pts.size(); at += len) {
+          f.value_gradient_batch(pts.data() + at, len, fv.data(), gv.data());
+          for (std::size_t k = 0; k < len; ++k)
+            bad[t] += bits(fv[k]) != bits(ref[at + k]) || bits(gv[k].x) != bits(gref[at + k].x) ||
+                      bits(gv[k].y) != bits(gref[at + k].y) || bits(gv[k].z) != bits(gref[at + k].z);
+        }
+    });
+  for (auto& th : threads) th.join();
+  for (int t = 0; t < kThreads; ++t) EXPECT_EQ(bad[t], 0u) << "thread " << t;
+}
+
+TEST(VolumeField, SortsLargeBatchesOnLargeVolumesByDefault) {
+  // Automatic threshold: volumes of more than 32 MiB of float voxels sort
+  // batches of one point per four bricks or more; smaller volumes never.
+  const VolumeField small(random_volume(Dims{37, 22, 19}, oblique_geometry(), 1));
+  EXPECT_FALSE(small.sorts_batch(std::size_t(1) << 24));
+  const Volume big(VoxelType::u8, Dims{256, 256, 160});  // 64 x 128 x 80 bricks: 40 MiB as floats
+  const std::size_t bricks = 64 * 128 * 80;
+  const VolumeField f(big);
+  EXPECT_FALSE(f.sorts_batch(bricks / 4 - 1));
+  EXPECT_TRUE(f.sorts_batch(bricks / 4));
+  EXPECT_FALSE(f.sorts_batch(1));
+  VolumeFieldParams never;
+  never.sort_min_batch = SIZE_MAX;
+  EXPECT_FALSE(VolumeField(big, never).sorts_batch(std::size_t(1) << 24));
 }
 
 TEST(VolumeField, BatchOnALargeVolumeMatchesKernelSums) {

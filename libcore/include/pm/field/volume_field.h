@@ -4,6 +4,7 @@
 // spacing and direction matrix). Samples outside the grid are clamped to the
 // border (replicate).
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -16,11 +17,21 @@ namespace pm {
 struct VolumeFieldParams {
   KernelType value_kernel = KernelType::bspline;  ///< kernel for F
   KernelType deriv_kernel = KernelType::bspline;  ///< kernel for gradient and Hessian
-  /// Chapter-5 mix: value from Catmull-Rom, derivatives from the B-spline.
   /// Use the AVX2 code path when the CPU has it (checked at run time; the
   /// results are bit-identical to the baseline x86-64 path, which false
   /// forces, e.g. to compare the two).
   bool allow_avx2 = true;
+  /// Batch calls with at least this many points (n >= 2) evaluate them in
+  /// the memory order of their voxel bricks (a radix sort in per-thread
+  /// scratch of 72 bytes per point, kept for reuse, up to 2^20 points at a
+  /// time) and write each result to the caller's position: bit-identical,
+  /// faster at random points in a volume larger than the caches once a batch
+  /// is dense enough. 0 (default): automatic, sorted when the voxels take
+  /// more than 32 MiB and the batch has at least one point per four bricks
+  /// (a brick is 4x2x2 voxels; 262144 points for 256³), where it measured
+  /// faster (tests/bench/bench_field.cpp). SIZE_MAX: never.
+  std::size_t sort_min_batch = 0;
+  /// Chapter-5 mix: value from Catmull-Rom, derivatives from the B-spline.
   static VolumeFieldParams chapter5_mix() { return {KernelType::catmull_rom, KernelType::bspline}; }
 };
 
@@ -29,9 +40,11 @@ struct VolumeFieldParams {
 /// With mixed kernels the gradient and Hessian are those of the
 /// deriv_kernel reconstruction (not the derivatives of value()). A NaN
 /// position gives NaN results. Thread-safe for concurrent evaluation; no
-/// allocation after construction. The batch calls prefetch a few points
-/// ahead: at random points in a volume much larger than the caches they are
-/// several times faster than single-point calls (tests/bench/bench_field.cpp).
+/// allocation after construction, except the per-thread scratch of batches
+/// evaluated in brick order (sort_min_batch). The batch calls prefetch a few
+/// points ahead: at random points in a volume much larger than the caches
+/// they are faster than single-point calls, and large batches evaluated in
+/// brick order faster still (tests/bench/bench_field.cpp).
 class VolumeField : public ScalarField {
  public:
   /// Copies the voxels as float (`name` is used in messages and describe()).
@@ -54,6 +67,9 @@ class VolumeField : public ScalarField {
   const Geometry& geometry() const { return geom_; }
   /// True when evaluation runs the AVX2 code path.
   bool uses_avx2() const { return avx2_; }
+  /// True when a batch call with n points evaluates them in brick order
+  /// (VolumeFieldParams::sort_min_batch).
+  bool sorts_batch(std::size_t n) const { return n >= 2 && n >= sort_min_; }
 
  private:
   Dims dims_;
@@ -61,6 +77,8 @@ class VolumeField : public ScalarField {
   Mat3 inv_dirs_;  // world -> index
   VolumeFieldParams params_;
   bool avx2_ = false;
+  std::size_t sort_min_ = 0;  // batches from this size on run in brick order
+  int key_bits_ = 0;          // bits of the largest brick index
   std::vector<float> data_;
   std::string name_;
   // Voxel storage is bricked (see volume_field.cpp): voxel (i,j,k) lives at
