@@ -90,6 +90,7 @@ pm_cli_test(morph.both_op_ops "morph: usage error: give either --op or --ops" ${
 pm_cli_test(morph.absent_label "morph: error: .*label 7 \\(in the processed labels\\) does not occur; labels present: 0 1" ${MO} ${D}/onevoxel.nrrd /tmp/pm_morph_x.nrrd --op dilate --labels 7)
 pm_cli_test(morph.grey_with_ops "morph: usage error: --grey allows only --downsample" ${MO} ${D}/onevoxel.nrrd /tmp/pm_morph_x.nrrd --grey --op open)
 pm_cli_test(morph.bad_extension "morph: usage error: .*unknown volume extension" ${MO} ${D}/onevoxel.nrrd /tmp/pm_morph_x.xyz --op open)
+pm_cli_test(morph.grey_min_component "morph: usage error: --grey allows only --downsample" ${MO} ${D}/onevoxel.nrrd /tmp/pm_morph_x.nrrd --grey --min-component 5)
 pm_cli_test(morph.help_example "Example:.*morph .*--ops" ${MO} --help)
 pm_cli_script(morph.workflow morph_test.sh)
 # == gradlimit

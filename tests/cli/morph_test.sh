@@ -59,6 +59,18 @@ assert abs(a["mean"] - b["mean"]) < 1e-4 * max(1, abs(a["mean"])), (a["mean"], b
 assert a["min"] <= b["min"] and b["max"] <= a["max"]
 PY
 
+# 3b. Small components: mickey's label 5 (a 27-voxel cube) goes below 28 voxels and is refilled
+#     from its neighbours; every other label keeps its voxels' total.
+"$MO" "$M" "$T/c.nrrd" --min-component 28 --stats "$T/c.json" -q
+python3 - "$T/c.json" <<'PY'
+import json, sys
+st = json.load(open(sys.argv[1]))["counts"]
+assert st["components_removed"] >= 1 and st["component_voxels_removed"] >= 27, st
+after = st["labels_after"]
+assert "5" not in after, after
+assert sum(after.values()) == 63 ** 3, after
+PY
+
 # 4. A failed run leaves no output and no temporary file.
 mkdir "$T/fail"
 if "$MO" "$M" "$T/fail/out.nrrd" --op open --labels 9 2>/dev/null; then echo "absent label accepted"; exit 1; fi

@@ -228,6 +228,36 @@ TEST(Morphology, VotingFillsEveryEmptyVoxelTiesToSmallest) {
   EXPECT_THROW(vote_fill(all_empty, 0), InputError);
 }
 
+TEST(Morphology, SmallComponentsRemovedAndRefilled) {
+  // A 6^3 box (216 voxels) with a one-voxel cavity at its centre, a 2-voxel
+  // speck and a one-voxel speck outside it, and a diagonal (edge-touching)
+  // voxel that is its own 6-connected component.
+  Volume v = box(16, 2, 8);
+  v.set(5, 5, 5, 0);
+  v.set(12, 12, 12, 1);
+  v.set(13, 12, 12, 1);
+  v.set(12, 3, 3, 1);
+  v.set(8, 8, 7, 1);  // touches the box's edge voxel (7,7,7) only diagonally: own component
+  LabelMorphParams p;
+  p.min_component = 3;
+  LabelMorphResult r = morph_labels(v, p);
+  EXPECT_EQ(r.components_removed, 4u);          // cavity, 2-voxel speck, 1-voxel speck, diagonal voxel
+  EXPECT_EQ(r.component_voxels_removed, 5u);    // 1 + 2 + 1 + 1
+  EXPECT_EQ(r.labels.get(5, 5, 5), 1);          // cavity filled from its 6 inside neighbours
+  EXPECT_EQ(r.labels.get(12, 12, 12), 0);
+  EXPECT_EQ(r.labels.get(13, 12, 12), 0);
+  EXPECT_EQ(r.labels.get(12, 3, 3), 0);
+  EXPECT_EQ(r.labels.get(8, 8, 7), 0);
+  EXPECT_EQ(count_nonzero(r.labels), 216u);     // exactly the full box
+  EXPECT_EQ(r.empty, 5u);                       // the removed voxels, all refilled by voting
+  // A threshold of 2 keeps the 2-voxel speck.
+  p.min_component = 2;
+  r = morph_labels(v, p);
+  EXPECT_EQ(r.components_removed, 3u);
+  EXPECT_EQ(r.labels.get(12, 12, 12), 1);
+  EXPECT_EQ(count_nonzero(r.labels), 218u);
+}
+
 TEST(Morphology, DownsampleMajorityAndMean) {
   Geometry g = Geometry::with_spacing(1, 2, 3, Vec3(10, 20, 30));
   Volume v(VoxelType::u16, Dims{4, 4, 5}, g);

@@ -66,6 +66,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   tool.app.add_flag("--vote", p.vote, "Fill empty voxels by voting among face neighbours");
   tool.app.add_option("--fill", p.fill, "Label of empty voxels without --vote")->capture_default_str();
+  tool.app.add_option("--min-component", p.min_component,
+                      "Remove connected components (6-neighbour, voxels of one label, background included) with "
+                      "fewer than N voxels after morphology and downsampling, refilling them by voting from their "
+                      "neighbours (implies --vote); 0 = keep all")
+      ->capture_default_str();
   tool.app.add_flag("--grey", grey, "Grey-value input: only --downsample (block mean) is allowed");
 
   return tool.run(argc, argv, [&] {
@@ -81,13 +86,14 @@ int main(int argc, char** argv) {
     if (!ops.empty()) parse_ops(ops, p);
     if (!labels.empty()) p.labels = pm::parse_label_list(labels);
     const bool morph = !p.steps.empty() || !p.per_label.empty();
-    if (!morph && p.downsample == 1 && !p.vote)
-      throw pm::UsageError("nothing to do; expected --op, --ops, --downsample K > 1 or --vote");
-    if (grey && (morph || p.vote || !labels.empty()))
-      throw pm::UsageError("--grey allows only --downsample (morphology and voting need a label map)");
+    if (!morph && p.downsample == 1 && !p.vote && p.min_component < 2)
+      throw pm::UsageError("nothing to do; expected --op, --ops, --downsample K > 1, --vote or --min-component N");
+    if (grey && (morph || p.vote || !labels.empty() || p.min_component > 1))
+      throw pm::UsageError("--grey allows only --downsample (morphology, voting and components need a label map)");
     st["inputs"] = {in};
     st["parameters"] = {{"op", op}, {"stencil", stencil}, {"iterations", iterations}, {"ops", ops},
-                        {"labels", labels}, {"downsample", p.downsample}, {"vote", p.vote}, {"grey", grey}};
+                        {"labels", labels}, {"downsample", p.downsample}, {"vote", p.vote}, {"grey", grey},
+                        {"min_component", p.min_component}};
     const pm::Volume v = pm::read_volume(in);
     pm::Volume result;
     if (grey) {
@@ -106,8 +112,14 @@ int main(int argc, char** argv) {
                                                              : pm::quote(in) + ": " + m);
       }
       st["counts"] = {{"labels_before", counts_json(r.counts_before)}, {"labels_after", counts_json(r.counts_after)},
-                      {"empty", r.empty}, {"vote_rounds", r.vote_rounds}};
-      if (r.empty && !p.vote)
+                      {"empty", r.empty}, {"vote_rounds", r.vote_rounds},
+                      {"components_removed", r.components_removed},
+                      {"component_voxels_removed", r.component_voxels_removed}};
+      if (r.components_removed)
+        pm::info("removed " + std::to_string(r.components_removed) + " components below " +
+                 std::to_string(p.min_component) + " voxels (" + std::to_string(r.component_voxels_removed) +
+                 " voxels, refilled by voting)");
+      if (r.empty && !p.vote && !r.component_voxels_removed)
         pm::info(std::to_string(r.empty) + " voxels left empty were set to " + std::to_string(p.fill) +
                  " (use --vote to fill them from their neighbours)");
       result = std::move(r.labels);

@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <sstream>
 #include <unordered_map>
 
@@ -477,6 +479,49 @@ Indexed downsample_indices(const Indexed& x, int k) {
   return o;
 }
 
+// Removes (sets empty) every 6-connected component of one label with fewer
+// than `min_voxels` voxels; returns {components removed, voxels removed}.
+std::pair<std::size_t, std::size_t> remove_small_components(Indexed& x, std::size_t min_voxels) {
+  const Dims d = x.dims;
+  const std::size_t n = d.count(), sy = d.nx, sz = d.nx * d.ny;
+  std::vector<std::uint32_t> comp(n, 0);  // 0 = not visited, else component id
+  std::vector<std::uint32_t> stack, members;
+  std::size_t ncomp = 0, nvox = 0;
+  std::uint32_t id = 0;
+  for (std::size_t s = 0; s < n; ++s) {
+    if (comp[s] || x.idx[s] == kEmpty) continue;
+    const std::uint16_t l = x.idx[s];
+    ++id;
+    members.clear();
+    stack.assign(1, std::uint32_t(s));
+    comp[s] = id;
+    while (!stack.empty()) {
+      const std::size_t c = stack.back();
+      stack.pop_back();
+      members.push_back(std::uint32_t(c));
+      const std::size_t i = c % d.nx, j = (c / d.nx) % d.ny, k = c / sz;
+      auto visit = [&](std::size_t q) {
+        if (!comp[q] && x.idx[q] == l) {
+          comp[q] = id;
+          stack.push_back(std::uint32_t(q));
+        }
+      };
+      if (i > 0) visit(c - 1);
+      if (i + 1 < d.nx) visit(c + 1);
+      if (j > 0) visit(c - sy);
+      if (j + 1 < d.ny) visit(c + sy);
+      if (k > 0) visit(c - sz);
+      if (k + 1 < d.nz) visit(c + sz);
+    }
+    if (members.size() < min_voxels) {
+      ++ncomp;
+      nvox += members.size();
+      for (std::uint32_t c : members) x.idx[c] = kEmpty;
+    }
+  }
+  return {ncomp, nvox};
+}
+
 void check_factor(int k) {
   if (k < 1) throw UsageError("downsample factor " + std::to_string(k) + "; expected an integer >= 1");
 }
@@ -592,12 +637,19 @@ LabelMorphResult morph_labels(const Volume& labels, const LabelMorphParams& p) {
   }
 
   if (p.downsample > 1) x = downsample_indices(x, p.downsample);
+  if (p.min_component > 1) {
+    if (x.idx.size() >= std::size_t(std::numeric_limits<std::uint32_t>::max()))
+      throw InputError("morph_labels: --min-component needs fewer than 2^32 voxels");
+    const auto [nc, nv] = remove_small_components(x, p.min_component);
+    res.components_removed = nc;
+    res.component_voxels_removed = nv;
+  }
   for (std::uint16_t v : x.idx) res.empty += v == kEmpty;
-  if (p.vote) res.vote_rounds = vote_indices(x, "morph_labels");
+  if (p.vote || res.component_voxels_removed) res.vote_rounds = vote_indices(x, "morph_labels");
   const Geometry g = p.downsample > 1 ? downsampled_geometry(labels.geometry(), p.downsample) : labels.geometry();
   res.labels = write_labels(x, labels.type(), g, p.fill);
   res.counts_after = counts_of(x);
-  if (!p.vote && res.empty) res.counts_after[p.fill] += res.empty;
+  if (!p.vote && !res.component_voxels_removed && res.empty) res.counts_after[p.fill] += res.empty;
   return res;
 }
 

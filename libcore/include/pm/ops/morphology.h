@@ -97,6 +97,10 @@ struct LabelMorphParams {
   int downsample = 1;     ///< integer factor >= 1 (voxels per output voxel per axis)
   bool vote = false;      ///< fill empty voxels by voting
   std::int64_t fill = 0;  ///< value of empty voxels when vote is false
+  /// After morphology and downsampling: remove every 6-connected component
+  /// of a label (background included) with fewer voxels than this and fill
+  /// it by voting (implies vote). 0 or 1 = keep all.
+  std::size_t min_component = 0;
 };
 
 struct LabelMorphResult {
@@ -104,6 +108,8 @@ struct LabelMorphResult {
   std::map<std::int64_t, std::size_t> counts_before, counts_after;
   std::size_t empty = 0;        ///< empty voxels after step 3
   std::size_t vote_rounds = 0;  ///< voting rounds run (0 without vote)
+  std::size_t components_removed = 0;        ///< components below min_component
+  std::size_t component_voxels_removed = 0;  ///< their voxels (refilled by voting)
 };
 
 /// \throw InputError for non-integer voxel values, absent labels, more than
