@@ -4,7 +4,9 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <cstdlib>
 #include <limits>
+#include <new>
 #include <sstream>
 #include <utility>
 
@@ -405,14 +407,48 @@ union SortItem {
 static_assert(sizeof(SortItem) == 32, "two items per cache line");
 
 // Per-thread scratch of the sort (the batch calls are const and may run
-// concurrently from several threads; each runs one batch at a time). Grows to the largest
-// chunk sorted on the thread, 72 bytes per point (72 MiB for 2^20 points),
-// and is kept for reuse.
-struct SortScratch {
-  std::vector<std::uint32_t> key;     // bucket keys, then each point's place after the first digit
-  std::vector<std::uint32_t> place2;  // an item's place after the second digit, by its first place
+// concurrently from several threads; each runs one batch at a time). One
+// block, grown to the largest chunk sorted on the thread (72 bytes per
+// point, 144 with Hessians: 72 / 144 MiB for 2^20 points) and kept for
+// reuse; on transparent huge pages where Linux grants them, as the gather
+// reads it at random.
+class SortScratch {
+ public:
+  SortScratch() = default;
+  SortScratch(const SortScratch&) = delete;
+  SortScratch& operator=(const SortScratch&) = delete;
+  ~SortScratch() { std::free(mem_); }
+  // Room for n points, and their Hessians if asked (throws std::bad_alloc).
+  void reserve(std::size_t n, bool hessians) {
+    if (n <= cap_ && (hessians <= (hess != nullptr))) return;
+    constexpr std::size_t huge = std::size_t(2) << 20;
+    const std::size_t per_point =
+        2 * sizeof(SortItem) + 2 * sizeof(std::uint32_t) + (hessians ? sizeof(Mat3) : std::size_t(0));
+    const std::size_t bytes = (n * per_point + huge - 1) / huge * huge;
+    std::free(mem_);
+    mem_ = nullptr;
+    cap_ = 0;
+    mem_ = std::aligned_alloc(huge, bytes);
+    if (!mem_) throw std::bad_alloc();
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+    madvise(mem_, bytes, MADV_HUGEPAGE);
+#endif
+    a = static_cast<SortItem*>(mem_);
+    b = a + n;
+    hess = hessians ? reinterpret_cast<Mat3*>(b + n) : nullptr;
+    key = reinterpret_cast<std::uint32_t*>(hessians ? static_cast<void*>(hess + n) : static_cast<void*>(b + n));
+    place2 = key + n;
+    cap_ = n;
+  }
+  SortItem *a = nullptr, *b = nullptr;  // items, sorted by both digits (a) and the first (b)
+  Mat3* hess = nullptr;                  // Hessians in the order of a
+  std::uint32_t* key = nullptr;          // bucket keys, then each point's place after the first digit
+  std::uint32_t* place2 = nullptr;       // an item's place after the second digit, by its first place
   std::vector<std::uint32_t> low_count;
-  std::vector<SortItem> a, b;
+
+ private:
+  void* mem_ = nullptr;
+  std::size_t cap_ = 0;
 };
 SortScratch& sort_scratch() {
   thread_local SortScratch s;
@@ -424,32 +460,34 @@ inline Vec3 to_index(const Frame& fr, const Vec3& x) { return fr.inv_dirs * (x -
 
 constexpr int kHighBits = 8;  // first digit: 256 ranges of the brick array
 
-// Sorts the points x[0..n) (n <= kSortChunk) by brick key; returns the items
-// in that order: point i is at place2[place[i]] (place in s.key; place2 null
-// after one digit). The key keeps log2(n) + 2 high bits of the brick index,
-// at most kMaxKeyBits (finer order has nothing left to gain). First pass:
-// keys and a histogram of the high digit; second: each point's position
-// straight to its range; third: each range (a few thousand points, in
-// cache) by the low digit. Not inlined into the evaluation copies: one copy
-// serves all.
-__attribute__((noinline)) SortItem* sort_by_brick(const Frame& fr, const Vec3* x, std::size_t n, SortScratch& s,
-                                                  const std::uint32_t*& place2) {
-  place2 = nullptr;
-  if (s.key.size() < n) {
-    s.key.resize(n);
-    s.place2.resize(n);
-    s.a.resize(n);
-    s.b.resize(n);
-  }
+// The sort's first digit: the key keeps log2(n) + 2 high bits of the brick
+// index, at most kMaxKeyBits (finer order has nothing left to gain), split
+// into a high digit of up to kHighBits and a low digit.
+struct SortPlan {
+  int shift, high, low;
+  std::uint32_t end[(std::size_t(1) << kHighBits) + 1];  // range d of the first digit ends at end[d]
+};
+
+// Sorts the points x[0..n) (n <= kSortChunk) by the high digit of their brick
+// key into s.b, each item with its low digit, and sets s.key[i] to where
+// point i went. Two passes over x: keys and their histogram, then each
+// point's position straight to its range. Not inlined into the evaluation
+// copies: one copy serves all.
+__attribute__((noinline)) void sort_first_digit(const Frame& fr, const Vec3* x, std::size_t n, bool hessians,
+                                                SortScratch& s, SortPlan& plan) {
+  s.reserve(n, hessians);
   int log2n = 0;
   while ((std::size_t(1) << log2n) < n) ++log2n;
   int bits = log2n + 2 < kMaxKeyBits ? log2n + 2 : kMaxKeyBits;
   bits = bits < fr.key_bits ? bits : fr.key_bits;
-  const int shift = fr.key_bits - bits;
-  const int high = bits < kHighBits ? bits : kHighBits, low = bits - high;
+  plan.shift = fr.key_bits - bits;
+  plan.high = bits < kHighBits ? bits : kHighBits;
+  plan.low = bits - plan.high;
+  const int low = plan.low;
   const std::uint32_t low_mask = (std::uint32_t(1) << low) - 1;
-  std::uint32_t count[(std::size_t(1) << kHighBits) + 1] = {};
-  std::uint32_t* key = s.key.data();
+  std::uint32_t* count = plan.end;
+  std::fill(count, count + (std::size_t(1) << plan.high) + 1, 0u);
+  std::uint32_t* key = s.key;
   for (std::size_t i = 0; i < n; ++i) {
     // The brick of voxel trunc(t) after clamping t to [-2, n+1] (NaN to -2):
     // only the order depends on it.
@@ -461,12 +499,12 @@ __attribute__((noinline)) SortItem* sort_by_brick(const Frame& fr, const Vec3* x
       c = c < fr.grid.hi[a] ? c : fr.grid.hi[a];
       off += fr.grid.off[a][static_cast<Index>(c)];
     }
-    key[i] = std::uint32_t((std::uint64_t(off) / std::uint64_t(kBrickSize)) >> shift);
+    key[i] = std::uint32_t((std::uint64_t(off) / std::uint64_t(kBrickSize)) >> plan.shift);
     ++count[(key[i] >> low) + 1];
   }
-  for (std::size_t d = 1; d <= (std::size_t(1) << high); ++d) count[d] += count[d - 1];
+  for (std::size_t d = 1; d <= (std::size_t(1) << plan.high); ++d) count[d] += count[d - 1];
   // count[d] is where range d starts; the scatter moves it to where it ends.
-  SortItem* b = s.b.data();
+  SortItem* b = s.b;
   std::uint32_t* place = key;  // each key is read just before its slot is overwritten
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint32_t k = key[i], j = count[k >> low]++;
@@ -479,57 +517,49 @@ __attribute__((noinline)) SortItem* sort_by_brick(const Frame& fr, const Vec3* x
     it.in.low = k & low_mask;
     place[i] = j;
   }
-  if (low == 0) return b;
-  SortItem* a = s.a.data();
-  std::vector<std::uint32_t>& lc = s.low_count;
-  lc.resize(std::size_t(1) << low);
-  for (std::size_t d = 0, begin = 0; d < (std::size_t(1) << high); ++d) {
-    const std::size_t end = count[d];
-    if (end - begin <= 1) {
-      if (end > begin) {
-        a[begin] = b[begin];
-        s.place2[begin] = std::uint32_t(begin);
-      }
-      begin = end;
-      continue;
-    }
-    std::fill(lc.begin(), lc.end(), 0u);
-    for (std::size_t i = begin; i < end; ++i) ++lc[b[i].in.low];
-    std::uint32_t sum = std::uint32_t(begin);
-    for (std::uint32_t& c : lc) {
-      const std::uint32_t m = c;
-      c = sum;
-      sum += m;
-    }
-    for (std::size_t i = begin; i < end; ++i) {
-      const std::uint32_t j = lc[b[i].in.low]++;
-      a[j] = b[i];
-      s.place2[i] = j;
-    }
-    begin = end;
+}
+
+// Sorts range [begin, end) of s.b by the low digit into s.a and sets
+// s.place2[i] to where item i of s.b went. Returns the range's first item.
+// A range is a few thousand points at most for uniform points: it stays in
+// cache for the evaluation that follows.
+__attribute__((noinline)) SortItem* sort_range(SortScratch& s, int low, std::size_t begin, std::size_t end) {
+  SortItem *a = s.a, *b = s.b;
+  if (end - begin == 1) {
+    a[begin] = b[begin];
+    s.place2[begin] = std::uint32_t(begin);
+    return a + begin;
   }
-  place2 = s.place2.data();
-  return a;
+  std::vector<std::uint32_t>& lc = s.low_count;
+  lc.assign(std::size_t(1) << low, 0u);
+  for (std::size_t i = begin; i < end; ++i) ++lc[b[i].in.low];
+  std::uint32_t sum = std::uint32_t(begin);
+  for (std::uint32_t& c : lc) {
+    const std::uint32_t m = c;
+    c = sum;
+    sum += m;
+  }
+  for (std::size_t i = begin; i < end; ++i) {
+    const std::uint32_t j = lc[b[i].in.low]++;
+    a[j] = b[i];
+    s.place2[i] = j;
+  }
+  return a + begin;
 }
 
 // The pipeline of run_batch over the sorted items: item i + kLookahead is
 // located before item i is reconstructed; value and gradient go to the
-// item's own slot (its position is no longer needed), the Hessian straight
-// to the caller's array (prefetched kFar ahead).
+// item's own slot (its position is no longer needed), the Hessian to
+// hess[i].
 template <int Order, AccumulateFn Acc>
 void run_sorted_chunk(const Frame& fr, SortItem* items, std::size_t n, Mat3* hess) {
   Taps ring[kRing];
   for (std::size_t k = 0; k < n && k < kLookahead; ++k) locate(fr.grid, items[k].in.t, ring[k]);
   for (std::size_t i = 0; i < n; ++i) {
-#if defined(__GNUC__)
-    if constexpr (Order >= 2)
-      if (i + kFar < n) __builtin_prefetch(hess + items[i + kFar].in.idx, 1);
-#endif
     if (i + kLookahead < n) locate(fr.grid, items[i + kLookahead].in.t, ring[(i + kLookahead) % kRing]);
     double g[3], h[6];
-    const std::size_t q = items[i].in.idx;
     const double f = Acc(fr.grid, ring[i % kRing], g, h);
-    if constexpr (Order >= 2) hessian_to_world(fr.inv_dirs, h, hess[q]);
+    if constexpr (Order >= 2) hessian_to_world(fr.inv_dirs, h, hess[i]);
     items[i].out.f = f;
     if constexpr (Order >= 1) {
       const Vec3 gw = gradient_to_world(fr.inv_dirs, g);
@@ -540,20 +570,30 @@ void run_sorted_chunk(const Frame& fr, SortItem* items, std::size_t n, Mat3* hes
   }
 }
 
-// Results back to the caller's order: reads the items at random (one line
-// each, prefetched), writes the outputs in order.
+// Results back to the caller's order: reads the items (and Hessians) at
+// random (one line each, two for a Hessian, prefetched), writes the outputs
+// in order.
 template <int Order>
-void gather_results(const SortItem* items, const std::uint32_t* place, const std::uint32_t* place2, std::size_t n,
-                    double* f, Vec3* grad) {
+void gather_results(const SortItem* items, const Mat3* hs, const std::uint32_t* place, const std::uint32_t* place2,
+                    std::size_t n, double* f, Vec3* grad, Mat3* hess) {
   auto at = [place, place2](std::size_t i) { return place2 ? place2[place[i]] : place[i]; };
   for (std::size_t i = 0; i < n; ++i) {
 #if defined(__GNUC__)
     if (place2 && i + 2 * kFar < n) __builtin_prefetch(place2 + place[i + 2 * kFar]);
-    if (i + kFar < n) __builtin_prefetch(items + at(i + kFar));
+    if (i + kFar < n) {
+      const std::size_t j = at(i + kFar);
+      __builtin_prefetch(items + j);
+      if constexpr (Order >= 2) {
+        __builtin_prefetch(hs + j);
+        __builtin_prefetch(reinterpret_cast<const char*>(hs + j) + sizeof(Mat3) - 1);
+      }
+    }
 #endif
-    const SortItem& it = items[at(i)];
+    const std::size_t j = at(i);
+    const SortItem& it = items[j];
     f[i] = it.out.f;
     if constexpr (Order >= 1) grad[i] = Vec3(it.out.g[0], it.out.g[1], it.out.g[2]);
+    if constexpr (Order >= 2) hess[i] = hs[j];
   }
 }
 
@@ -562,10 +602,22 @@ void run_sorted(const Frame& fr, const Vec3* x, std::size_t n, double* f, Vec3* 
   SortScratch& s = sort_scratch();
   for (std::size_t at = 0; at < n; at += kSortChunk) {
     const std::size_t m = n - at < kSortChunk ? n - at : kSortChunk;
-    const std::uint32_t* place2;
-    SortItem* items = sort_by_brick(fr, x + at, m, s, place2);
-    run_sorted_chunk<Order, Acc>(fr, items, m, Order >= 2 ? hess + at : nullptr);
-    gather_results<Order>(items, s.key.data(), place2, m, f + at, Order >= 1 ? grad + at : nullptr);
+    SortPlan plan;
+    sort_first_digit(fr, x + at, m, Order >= 2, s, plan);
+    double* fo = f + at;
+    Vec3* go = Order >= 1 ? grad + at : nullptr;
+    Mat3* ho = Order >= 2 ? hess + at : nullptr;
+    if (plan.low == 0) {  // one digit: sorted
+      run_sorted_chunk<Order, Acc>(fr, s.b, m, s.hess);
+      gather_results<Order>(s.b, s.hess, s.key, nullptr, m, fo, go, ho);
+      continue;
+    }
+    // Each range by its low digit, then evaluated while it is in cache.
+    for (std::size_t d = 0, begin = 0; d < (std::size_t(1) << plan.high); begin = plan.end[d++])
+      if (plan.end[d] > begin)
+        run_sorted_chunk<Order, Acc>(fr, sort_range(s, plan.low, begin, plan.end[d]), plan.end[d] - begin,
+                                     Order >= 2 ? s.hess + begin : nullptr);
+    gather_results<Order>(s.a, s.hess, s.key, s.place2, m, fo, go, ho);
   }
 }
 

@@ -23,8 +23,8 @@ struct VolumeFieldParams {
   bool allow_avx2 = true;
   /// Batch calls with at least this many points (n >= 2) evaluate them in
   /// the memory order of their voxel bricks (a radix sort in per-thread
-  /// scratch of 72 bytes per point, kept for reuse, up to 2^20 points at a
-  /// time) and write each result to the caller's position: bit-identical,
+  /// scratch of 72 bytes per point, 144 with Hessians, kept for reuse, up to
+  /// 2^20 points at a time) and write each result to the caller's position: bit-identical,
   /// faster at random points in a volume larger than the caches once a batch
   /// is dense enough. 0 (default): automatic, sorted when the voxels take
   /// more than 32 MiB and the batch has at least one point per four bricks
