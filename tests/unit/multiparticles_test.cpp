@@ -164,6 +164,55 @@ TEST(MultiParticles, DeterministicForAnyThreadCount) {
   EXPECT_EQ(a.levels[2].cells, 3u);  // 0|1, 0|2 and 1|2
 }
 
+// Background 0 and two pairs of overlapping spheres: 1 and 2 meet the
+// background on a short triple circle (radius 0.12), 3 and 4 on a long one
+// (radius 0.35). The short circle's crowded seed particles all have high
+// energies; they must not all die in one population round while the long
+// circle keeps the level populated.
+MaterialSet short_and_long_circles() {
+  MaterialSet m;
+  test::add_material(
+      m, 0,
+      [](const Vec3&, Vec3& g) {
+        g = {};
+        return 0.0;
+      },
+      test::cube(1.0));
+  auto sphere = [](Vec3 c, double r) {
+    return [c, r](const Vec3& x, Vec3& g) {
+      const Vec3 d = x - c;
+      const double l = norm(d);
+      g = l > 0 ? -(d / l) : Vec3{};
+      return r - l;
+    };
+  };
+  test::add_material(m, 1, sphere({-0.55, 0, 0}, 0.2), test::cube(1.0));
+  test::add_material(m, 2, sphere({-0.3, 0, 0}, 0.15), test::cube(1.0));
+  test::add_material(m, 3, sphere({0.35, 0, 0}, 0.4), test::cube(1.0));
+  test::add_material(m, 4, sphere({0.6, 0, 0}, 0.35), test::cube(1.0));
+  return m;
+}
+
+TEST(MultiParticles, ShortCurveKeepsParticles) {
+  const MaterialSet m = short_and_long_circles();
+  const std::vector<JunctionSeed> seeds = junction_seeds_from_materials(m);
+  const double r_short = 0.12;  // sqrt(0.2² - 0.16²): circumference 0.75
+  for (double s : {0.3, 0.4, 0.5, 0.6}) {
+    MultiParticleParams p = quiet(s);
+    p.surfaces = false;
+    p.seed_thinning = 0;
+    const MultiParticleResult r = distribute_multi_particles(m, seeds, nullptr, p);
+    int on_short = 0, on_long = 0;
+    for (std::size_t i = 0; i < r.positions.size(); ++i)
+      if (r.junction[i] == 3) (r.positions[i].x < -0.02 ? on_short : on_long)++;
+    EXPECT_GE(on_short, 1) << "spacing " << s << ": the short triple circle lost every particle";
+    EXPECT_GE(on_long, 3) << "spacing " << s;
+    EXPECT_EQ(r.levels[1].cells, 2u) << "spacing " << s;
+    // Not crowded either: at most one particle per half spacing of arc (+1).
+    EXPECT_LE(double(on_short), 2 * M_PI * r_short / (0.5 * s) + 1) << "spacing " << s;
+  }
+}
+
 // A 24³ label map of three wedges (voxel size 1): materials from the masks'
 // signed distances; particles must lie on the reconstructed junctions.
 TEST(MultiParticles, LabelMapWedges) {

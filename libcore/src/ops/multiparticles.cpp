@@ -223,6 +223,7 @@ class MultiEngine {
   double sweep(double& energy);
   double measure();
   bool population_control(int level, std::uint64_t tag, bool final_check, MultiLevelStats& st);
+  void keep_covered(std::vector<char>& del, std::size_t& ndel) const;
   std::vector<char> project_candidates(std::vector<Candidate>& cands, int steps, const std::vector<double>& max_step);
   void thin(std::vector<Candidate>& cands, double fraction);
   void add_particles(const std::vector<Candidate>& cands, const std::vector<char>& ok, int level);
@@ -501,6 +502,7 @@ bool MultiEngine::population_control(int level, std::uint64_t tag, bool final_ch
       steps.push_back(q.h);
     }
   }
+  keep_covered(del, ndel);
   if (final_check && double(ndel + kids.size()) <= p_.population_tolerance * double(nactive)) return false;
   if (ndel == nactive && ndel) {  // never empty a level
     for (std::size_t i = 0; i < parts_.size(); ++i)
@@ -521,6 +523,35 @@ bool MultiEngine::population_control(int level, std::uint64_t tag, bool final_ch
   st.splits += nsplit;
   st.deletions += ndel;
   return nsplit + ndel > 0;
+}
+
+// Crowded neighbours all have high energies, so they can all be marked for
+// deletion in the same round and leave a hole (a short junction curve then
+// loses every particle). In bin order, a marked particle is only deleted
+// when a particle of its cell that stays lies within its interaction
+// radius; otherwise it stays. Deterministic; needs the bins of measure().
+void MultiEngine::keep_covered(std::vector<char>& del, std::size_t& ndel) const {
+  for (std::size_t b = 0; b + 1 < bin_start_.size(); ++b)
+    for (std::uint32_t i = bin_start_[b]; i < bin_start_[b + 1]; ++i) {
+      if (!del[i]) continue;
+      const MP& P = parts_[i];
+      bool covered = false;
+      const std::int32_t* nb = &bin_nbr_[b * 27];
+      for (int k = 0; k < 27 && !covered; ++k) {
+        if (nb[k] < 0) continue;
+        const std::size_t c = std::size_t(nb[k]);
+        for (std::uint32_t q = bin_start_[c]; q < bin_start_[c + 1] && !covered; ++q) {
+          const MP& o = parts_[q];
+          if (q == i || del[q] || o.fixed || o.cell != P.cell) continue;
+          const double al = alpha(P.h, o.h);
+          covered = al * al * norm2(o.x - P.x) < 1.0;
+        }
+      }
+      if (!covered) {
+        del[i] = 0;
+        --ndel;
+      }
+    }
 }
 
 void MultiEngine::relax(int level, MultiLevelStats& st) {
