@@ -79,6 +79,7 @@ class VolumeField : public ScalarField {
   bool avx2_ = false;
   std::size_t sort_min_ = 0;  // batches from this size on run in brick order
   int key_bits_ = 0;          // bits of the largest brick index
+  std::size_t bricks_ = 0;    // bricks in the storage
   std::vector<float> data_;
   std::string name_;
   // Voxel storage is bricked (see volume_field.cpp): voxel (i,j,k) lives at
