@@ -22,13 +22,14 @@ struct VolumeFieldParams {
   /// forces, e.g. to compare the two).
   bool allow_avx2 = true;
   /// Batch calls with at least this many points (n >= 2) evaluate them in
-  /// the memory order of their voxel bricks (a radix sort in per-thread
-  /// scratch of 72 bytes per point, 144 with Hessians, kept for reuse, up to
-  /// 2^20 points at a time) and write each result to the caller's position: bit-identical,
-  /// faster at random points in a volume larger than the caches once a batch
-  /// is dense enough. 0 (default): automatic, sorted when the voxels take
-  /// more than 32 MiB and the batch has at least one point per four bricks
-  /// (a brick is 4x2x2 voxels; 262144 points for 256³), where it measured
+  /// the memory order of their voxel bricks and write each result to the
+  /// caller's position: bit-identical, faster at random points in a volume
+  /// larger than the caches once a batch is dense enough. The radix sort
+  /// works on up to 2^20 points at a time in per-thread scratch of 72 bytes
+  /// per point (144 with Hessians), kept for reuse (std::bad_alloc if it
+  /// cannot grow). 0 (default): automatic, sorted when the voxels take more
+  /// than 32 MiB and the batch has at least one point per four bricks (a
+  /// brick is 4x2x2 voxels; 262144 points for 256³), where it measured
   /// faster (tests/bench/bench_field.cpp). SIZE_MAX: never.
   std::size_t sort_min_batch = 0;
   /// Chapter-5 mix: value from Catmull-Rom, derivatives from the B-spline.
