@@ -36,10 +36,10 @@ def case_field():
     if not os.path.exists(exe):
         row("field", "pm_bench_field", None, "", note="not built (Google Benchmark missing)")
         return
-    # Three repetitions, median reported (CPU time), spread in the note: other jobs on the machine share
-    # its memory bandwidth and caches, and random-access rows move by 10-30 % between runs.
+    # Three repetitions in random interleaved order, median reported (CPU time), spread in the note: other
+    # jobs on the machine share its memory bandwidth and caches, and random-access rows move by 10-30 %.
     p, _ = run([exe, "--benchmark_format=json", "--benchmark_min_time=0.3", "--benchmark_repetitions=3",
-                "--benchmark_report_aggregates_only=true"])
+                "--benchmark_enable_random_interleaving=true", "--benchmark_report_aggregates_only=true"])
     data = json.loads(p.stdout)
     best_lines = 0.0
     spread = {}
@@ -71,7 +71,7 @@ def case_field():
             if family == "BM_value_gradient_baseline_isa":
                 what += ", no AVX2"
             elif n:
-                what += ", brick order" if args.get("sort") == "1" else ", given order"
+                what += {"0": ", given order", "1": ", brick order", "2": ", default order"}[args.get("sort", "0")]
             name = f"{name} (value+gradient, B-spline, random points, {what})"
         row("field", name, round(ips / 1e6, 2), "M eval/s", target, ok, note)
     if best_lines:

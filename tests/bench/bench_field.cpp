@@ -10,7 +10,7 @@
 //
 // BM_*_batch: the same points through the batch calls, kBatch per call
 // (BM_value_batch) or `batch` per call, with and without evaluation in brick
-// order (`sort`, VolumeFieldParams::sort_min_batch).
+// order (`sort`: 0 never, 1 always, 2 default; VolumeFieldParams::sort_min_batch).
 // BM_value_gradient_baseline_isa: with the AVX2 path disabled (what a CPU
 // without AVX2 runs). BM_random_lines: the machine's ceiling for random
 // access, independent 64-byte lines fetched from a 64 MiB buffer with
@@ -66,10 +66,10 @@ const pm::VolumeField& field(bool mix) {
 }
 
 // sort = 0: batches never evaluated in brick order (the points' own order);
-// 1: always (sort_min_batch = 2). The default (sort_min_batch = 0) sorts
-// batches from 262144 points on this 256³ field: it is sort:0 below that
-// size, sort:1 from there.
-const pm::VolumeField& field(bool mix, bool sort) {
+// 1: always (sort_min_batch = 2); 2: the default (sort_min_batch = 0: from
+// 262144 points on this 256³ field, unless the points are coherent already).
+const pm::VolumeField& field(bool mix, int sort) {
+  if (sort == 2) return field(mix);
   static const auto with = [](pm::VolumeFieldParams p, std::size_t sort_min) {
     p.sort_min_batch = sort_min;
     return p;
@@ -194,12 +194,12 @@ void value_gradient_batch(benchmark::State& state, const pm::VolumeField& f, boo
 // slices of the same point set), sorted into brick order or not (`sort`);
 // the sort runs inside the timed call.
 void BM_value_gradient_batch(benchmark::State& state) {
-  value_gradient_batch(state, field(state.range(0) != 0, state.range(3) != 0), state.range(1) != 0,
+  value_gradient_batch(state, field(state.range(0) != 0, int(state.range(3))), state.range(1) != 0,
                        std::size_t(state.range(2)));
 }
 
 void BM_evaluate_batch(benchmark::State& state) {
-  const pm::VolumeField& f = field(state.range(0) != 0, state.range(3) != 0);
+  const pm::VolumeField& f = field(state.range(0) != 0, int(state.range(3)));
   const auto& pts = points(state.range(1) != 0);
   const std::size_t batch = std::size_t(state.range(2));
   std::vector<double> v(batch);
@@ -279,7 +279,8 @@ BENCHMARK(BM_evaluate)->ArgNames({"mix", "walk"})->ArgsProduct({{0, 1}, {0, 1}})
 BENCHMARK(BM_value_batch)->ArgNames({"mix", "walk"})->ArgsProduct({{0, 1}, {0, 1}});
 // Batch sizes: 256 (kBatch) as before, then 4k, 64k, 256k and 1M points
 // (B-spline, random points) with and without the brick-order sort; the
-// Chapter-5 mix at random points and the B-spline random walk at 1M.
+// Chapter-5 mix at random points and the B-spline random walk at 1M; the
+// default choice at 1M, random points and random walk.
 constexpr std::int64_t kSizes[] = {4096, 65536, 262144, std::int64_t(kPoints)};
 void batch_args(benchmark::internal::Benchmark* b) {
   b->ArgNames({"mix", "walk", "batch", "sort"});
@@ -288,7 +289,8 @@ void batch_args(benchmark::internal::Benchmark* b) {
   for (std::int64_t n : kSizes)
     for (int sort : {0, 1}) b->Args({0, 0, n, sort});
   for (int sort : {0, 1}) b->Args({1, 0, std::int64_t(kPoints), sort});
-  for (int sort : {0, 1}) b->Args({0, 1, std::int64_t(kPoints), sort});
+  for (int sort : {0, 1, 2}) b->Args({0, 1, std::int64_t(kPoints), sort});
+  b->Args({0, 0, std::int64_t(kPoints), 2});
 }
 BENCHMARK(BM_value_gradient_batch)->Apply(batch_args);
 BENCHMARK(BM_evaluate_batch)->Apply(batch_args);

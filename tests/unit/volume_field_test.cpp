@@ -573,6 +573,29 @@ TEST(VolumeField, SortsLargeBatchesOnLargeVolumesByDefault) {
   EXPECT_FALSE(VolumeField(big, never).sorts_batch(std::size_t(1) << 24));
 }
 
+TEST(VolumeField, DefaultLargeBatchesMatchSinglePointCalls) {
+  // Above the automatic threshold on a large volume: a random walk (coherent,
+  // evaluated in its own order) and the same points shuffled (evaluated in
+  // brick order), both bit for bit against single-point calls.
+  Volume big(VoxelType::u8, Dims{256, 256, 160}, oblique_geometry());
+  std::mt19937 rng(17);
+  std::uint8_t* d = big.data<std::uint8_t>();
+  for (std::size_t k = 0; k < big.count(); ++k) d[k] = std::uint8_t(rng());
+  const VolumeField f(big);
+  const std::size_t n = 64 * 128 * 80 / 4 + 100;
+  ASSERT_TRUE(f.sorts_batch(n));
+  std::normal_distribution<double> step(0.0, 0.5);  // voxels
+  std::vector<Vec3> pts(n);
+  Vec3 t(128, 128, 80);
+  for (Vec3& x : pts) {
+    for (int a = 0; a < 3; ++a) t[a] = std::clamp(t[a] + step(rng), -1.0, double(big.dims()[a]));
+    x = big.geometry().index_to_world(t);
+  }
+  expect_batch_matches_single(f, pts, "random walk", {n});
+  std::shuffle(pts.begin(), pts.end(), rng);
+  expect_batch_matches_single(f, pts, "shuffled", {n});
+}
+
 TEST(VolumeField, BatchOnALargeVolumeMatchesKernelSums) {
   // A volume beyond the small-test sizes (several brick rows and planes per
   // axis), the batch against a direct 64-tap sum of the kernel products on

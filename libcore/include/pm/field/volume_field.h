@@ -30,7 +30,9 @@ struct VolumeFieldParams {
   /// cannot grow). 0 (default): automatic, sorted when the voxels take more
   /// than 32 MiB and the batch has at least one point per four bricks (a
   /// brick is 4x2x2 voxels; 262144 points for 256³), where it measured
-  /// faster (tests/bench/bench_field.cpp). SIZE_MAX: never.
+  /// faster (tests/bench/bench_field.cpp), unless the points already come
+  /// in a coherent order (consecutive points mostly within two voxels of
+  /// each other, judged on 64 pairs). SIZE_MAX: never.
   std::size_t sort_min_batch = 0;
   /// Chapter-5 mix: value from Catmull-Rom, derivatives from the B-spline.
   static VolumeFieldParams chapter5_mix() { return {KernelType::catmull_rom, KernelType::bspline}; }
@@ -69,7 +71,8 @@ class VolumeField : public ScalarField {
   /// True when evaluation runs the AVX2 code path.
   bool uses_avx2() const { return avx2_; }
   /// True when a batch call with n points evaluates them in brick order
-  /// (VolumeFieldParams::sort_min_batch).
+  /// (VolumeFieldParams::sort_min_batch; with the automatic threshold, only
+  /// if the points are not in a coherent order already).
   bool sorts_batch(std::size_t n) const { return n >= 2 && n >= sort_min_; }
 
  private:
