@@ -41,6 +41,8 @@ def case_field():
     p, _ = run([exe, "--benchmark_format=json", "--benchmark_min_time=0.3", "--benchmark_repetitions=3",
                 "--benchmark_enable_random_interleaving=true", "--benchmark_report_aggregates_only=true"])
     data = json.loads(p.stdout)
+    # Interleaving shuffles the report: back to declaration order.
+    data["benchmarks"].sort(key=lambda b: (b.get("family_index", 0), b.get("per_family_instance_index", 0)))
     best_lines = 0.0
     spread = {}
     for b in data["benchmarks"]:
