@@ -288,7 +288,7 @@ def case_ch6():
         out = os.path.join(tmp, "frog5")
         _, wall = run(["make", "-s", "-f", os.path.join(ROOT, "Makefile.pipeline"), "ch6", f"INPUT={frog}",
                        f"OUT={out}", f"BIN={BIN}", "THREADS=2", "FLAGS=-q", "R=2", "DOWNSAMPLE=2",
-                       "MIN_VOXELS=300", f"MERGE={merge}"])
+                       "MIN_VOXELS=300", f"MERGE={merge}", "PAD=3", "PAD_VALUE=0"])
         total = stage_rows("ch6", out, ("volconv", "morph", "tighten", "sizingfield", "gradlimit", "mcinit",
                                         "multiparticles", "tetlabel"), 1)
         q = json.load(open(os.path.join(out, "quality.json")))

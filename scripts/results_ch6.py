@@ -34,12 +34,13 @@ DATASETS = [
     ("spheres", "spheres", {"R": "1", "MORPH_OPS": "none", "PAD": "3"},
      "Cleaver 'spheres': 4 indicator functions, 28^3, material = argmax, padded by 3 voxels of a new "
      "outside material (the materials fill the box)"),
-    ("frog5", FROG, {"R": "2", "DOWNSAMPLE": "2", "MIN_VOXELS": "300", "MERGE": FROG5},
-     "VTK frog tissue, 500x470x136 (1,1,1.5 mm) downsampled 2x, merged to 5 materials"),
-    ("frog15", FROG, {"R": "2", "DOWNSAMPLE": "2", "MIN_VOXELS": "300"},
-     "VTK frog tissue, downsampled 2x, all 15 tissues + background (stray labels < 300 voxels dropped)"),
-    ("head", "nested", {"R": "2", "DOWNSAMPLE": "2", "MORPH_OPS": "close:ball,open:ball"},
-     "iso2mesh air / head / brain (nested), 256^3 1 mm downsampled 2x"),
+    ("frog5", FROG, {"R": "2", "DOWNSAMPLE": "2", "MIN_VOXELS": "300", "MERGE": FROG5, "PAD": "3", "PAD_VALUE": "0"},
+     "VTK frog tissue, 500x470x136 (1,1,1.5 mm) downsampled 2x, merged to 5 materials, padded with background"),
+    ("frog15", FROG, {"R": "2", "DOWNSAMPLE": "2", "MIN_VOXELS": "300", "PAD": "3", "PAD_VALUE": "0"},
+     "VTK frog tissue, downsampled 2x, all 15 tissues + background (stray labels < 300 voxels dropped), "
+     "padded with background"),
+    ("head", "nested", {"R": "2", "DOWNSAMPLE": "2", "MORPH_OPS": "close:ball,open:ball", "PAD": "3", "PAD_VALUE": "0"},
+     "iso2mesh air / head / brain (nested), 256^3 1 mm downsampled 2x, padded with air (the head is cut at the neck)"),
 ]
 
 TARGETS = ("interfaces water-tight, material surfaces closed, manifold and free of self-intersections; "
