@@ -24,6 +24,13 @@
 #else
 #define PM_FIELD_AVX2 0
 #endif
+// Streaming (non-temporal) stores for the batch sort's scatter: SSE2.
+#if defined(__SSE2__)
+#define PM_STREAM_STORES 1
+#include <emmintrin.h>
+#else
+#define PM_STREAM_STORES 0
+#endif
 
 namespace pm {
 
@@ -432,7 +439,8 @@ class SortScratch {
     constexpr std::size_t huge = std::size_t(2) << 20;
     const std::size_t per_point =
         2 * sizeof(SortItem) + 2 * sizeof(std::uint32_t) + (hessians ? sizeof(Mat3) : std::size_t(0));
-    const std::size_t bytes = (n * per_point + huge - 1) / huge * huge;
+    const std::size_t n2 = (n + 1) / 2 * 2;  // b starts on a cache line
+    const std::size_t bytes = (n2 * per_point + huge - 1) / huge * huge;
     std::free(mem_);
     mem_ = nullptr;
     cap_ = 0;
@@ -442,9 +450,9 @@ class SortScratch {
     madvise(mem_, bytes, MADV_HUGEPAGE);
 #endif
     a = static_cast<SortItem*>(mem_);
-    b = a + n;
-    hess = hessians ? reinterpret_cast<Mat3*>(b + n) : nullptr;
-    key = reinterpret_cast<std::uint32_t*>(hessians ? static_cast<void*>(hess + n) : static_cast<void*>(b + n));
+    b = a + n2;
+    hess = hessians ? reinterpret_cast<Mat3*>(b + n2) : nullptr;
+    key = reinterpret_cast<std::uint32_t*>(hessians ? static_cast<void*>(hess + n2) : static_cast<void*>(b + n2));
     place2 = key + n;
     cap_ = n;
   }
@@ -512,11 +520,18 @@ __attribute__((noinline)) void sort_first_digit(const Frame& fr, const Vec3* x, 
   }
   for (std::size_t d = 1; d <= (std::size_t(1) << plan.high); ++d) count[d] += count[d - 1];
   // count[d] is where range d starts; the scatter moves it to where it ends.
+  // The scatter writes each range's items in order, two per cache line: the
+  // first waits in `pending` and the pair goes out as one whole line with
+  // streaming stores (no read of the line before it is written). Items whose
+  // line is shared with the neighbouring range are stored normally.
   SortItem* b = s.b;
   std::uint32_t* place = key;  // each key is read just before its slot is overwritten
+  std::uint32_t start[std::size_t(1) << kHighBits];
+  std::copy(count, count + (std::size_t(1) << plan.high), start);
+  alignas(64) SortItem pending[std::size_t(1) << kHighBits];
   for (std::size_t i = 0; i < n; ++i) {
-    const std::uint32_t k = key[i], j = count[k >> low]++;
-    SortItem& it = b[j];
+    const std::uint32_t k = key[i], d = k >> low, j = count[d]++;
+    SortItem it;
     const Vec3 t = to_index(fr, x[i]);
     it.in.t[0] = t.x;
     it.in.t[1] = t.y;
@@ -524,7 +539,29 @@ __attribute__((noinline)) void sort_first_digit(const Frame& fr, const Vec3* x, 
     it.in.idx = std::uint32_t(i);
     it.in.low = k & low_mask;
     place[i] = j;
+#if PM_STREAM_STORES
+    if ((j & 1) == 0) {
+      pending[d] = it;
+    } else if (j - 1 >= start[d]) {
+      __m128i* line = reinterpret_cast<__m128i*>(b + j - 1);
+      const __m128i* first = reinterpret_cast<const __m128i*>(pending + d);
+      const __m128i* second = reinterpret_cast<const __m128i*>(&it);
+      _mm_stream_si128(line, _mm_load_si128(first));
+      _mm_stream_si128(line + 1, _mm_load_si128(first + 1));
+      _mm_stream_si128(line + 2, _mm_loadu_si128(second));
+      _mm_stream_si128(line + 3, _mm_loadu_si128(second + 1));
+    } else {
+      b[j] = it;
+    }
+#else
+    b[j] = it;
+#endif
   }
+#if PM_STREAM_STORES
+  _mm_sfence();
+  for (std::size_t d = 0; d < (std::size_t(1) << plan.high); ++d)  // a range's last item alone in its line
+    if (count[d] > start[d] && ((count[d] - 1) & 1) == 0) b[count[d] - 1] = pending[d];
+#endif
 }
 
 // Sorts range [begin, end) of s.b by the low digit into s.a and sets
