@@ -101,6 +101,45 @@ TEST(MultiParticles, ThreeWedgesCurveAndSurfaces) {
   }
 }
 
+// Without curve seeds the triple line (the z axis) is left to the surfaces:
+// particles of two interfaces crowd against it from both sides. The repair
+// turns each pair closer than h/4 into one particle on the line.
+TEST(MultiParticles, JunctionRepairPutsMissedCurvesOnTheLine) {
+  const MaterialSet m = test::three_wedges(0.0);
+  std::vector<JunctionSeed> seeds;
+  for (const JunctionSeed& j : junction_seeds_from_materials(m))
+    if (j.count == 2) seeds.push_back(j);
+  const double s = 0.2;
+  MultiParticleParams p = quiet(s);
+  p.repair_junctions = false;
+  const MultiParticleResult plain = distribute_multi_particles(m, seeds, nullptr, p);
+  p.repair_junctions = true;
+  const MultiParticleResult r = distribute_multi_particles(m, seeds, nullptr, p);
+  EXPECT_EQ(plain.junction_repairs, 0u);
+  for (int j : plain.junction) EXPECT_EQ(j, 2);
+  // Closest approach of surface particles of different interfaces.
+  auto closest_pair = [](const MultiParticleResult& q) {
+    double best = 1e300;
+    for (std::size_t a = 0; a < q.positions.size(); ++a)
+      for (std::size_t b = a + 1; b < q.positions.size(); ++b)
+        if (q.junction[a] == 2 && q.junction[b] == 2 && q.labels[a] != q.labels[b])
+          best = std::min(best, norm(q.positions[a] - q.positions[b]));
+    return best;
+  };
+  ASSERT_LT(closest_pair(plain), 0.25 * s);  // the situation the repair is for
+  EXPECT_GT(r.junction_repairs, 0u);
+  EXPECT_GE(closest_pair(r), 0.25 * s);      // every such pair was merged
+  expect_on_junctions(m, r, 1e-6);
+  std::size_t on_line = 0;
+  for (std::size_t i = 0; i < r.positions.size(); ++i)
+    if (r.junction[i] == 3) {
+      ++on_line;
+      EXPECT_LT(std::hypot(r.positions[i].x, r.positions[i].y), 1e-6);
+    }
+  EXPECT_EQ(on_line, r.junction_repairs);
+  EXPECT_EQ(r.positions.size() + r.junction_repairs, plain.positions.size());
+}
+
 TEST(MultiParticles, QuadruplePointIsOneParticleAndCurvesEndThere) {
   const MaterialSet m = test::four_tetrahedral();
   const std::vector<JunctionSeed> seeds = junction_seeds_from_materials(m, 0.1);

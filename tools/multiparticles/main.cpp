@@ -36,7 +36,10 @@ void record_stats(const pm::MultiParticleResult& r) {
     total += s.particles;
   }
   st["levels"] = levels;
-  st["counts"] = {{"particles", total}, {"field_evaluations", r.field_evaluations}};
+  (void)total;
+  st["counts"] = {{"particles", r.positions.size()},
+                  {"field_evaluations", r.field_evaluations},
+                  {"junction_repairs", r.junction_repairs}};
   st["max_residual"] = r.max_residual;
 }
 
@@ -60,7 +63,7 @@ int main(int argc, char** argv) {
   std::string seeds_path, labels_path, sizing_path, output, energy = "cotangent";
   pm::MultiParticleParams p;
   int decimate = 1;
-  bool no_surfaces = false;
+  bool no_surfaces = false, no_repair = false;
   tool.app.add_option("--seeds", seeds_path, "Junction seeds (PLY with vertex scalars junction, label_a..label_d as "
                                              "written by mcinit --junctions)");
   tool.app.add_option("--labels", labels_path, "Label map to compute junction seeds from (pm::junction_seeds; "
@@ -85,6 +88,10 @@ int main(int argc, char** argv) {
                       "Converged when at most this fraction of a level's particles wants to split or die")
       ->capture_default_str();
   tool.app.add_flag("--no-surfaces", no_surfaces, "Stop after the curves (points and curves only)");
+  tool.app.add_flag("--no-junction-repair", no_repair,
+                    "Keep surface particles of two interfaces sharing a material that come closer than h/4 (by "
+                    "default such a pair becomes one particle on their triple junction, where the curve level "
+                    "left a gap)");
   tool.app.add_option("-o,--output", output, "Output point set (.ply)")->required();
 
   return tool.run(argc, argv, [&] {
@@ -96,6 +103,7 @@ int main(int argc, char** argv) {
       throw pm::UsageError("output " + pm::quote(output) + ": expected a .ply file");
     p.energy = energy == "radial" ? pm::ParticleEnergy::radial : pm::ParticleEnergy::cotangent;
     p.surfaces = !no_surfaces;
+    p.repair_junctions = !no_repair;
     p.seed = tool.flags.seed;
     p.progress = !tool.flags.quiet;
 

@@ -69,10 +69,10 @@ std::size_t drop_duplicates(pm::Mesh& pts, double tol) {
 
 // TetGen's Delaunay tetrahedralisation of the particles (a timed stage);
 // TetGen's complaints name the point file.
-pm::TetMesh delaunay_of(const std::string& points, const pm::Mesh& pts) {
+pm::TetMesh delaunay_of(const std::string& points, const pm::Mesh& pts, bool enclosed = false) {
   pm::ScopedStage s("delaunay");
   try {
-    return pm::delaunay(pts.vertices);
+    return enclosed ? pm::delaunay_enclosed(pts.vertices) : pm::delaunay(pts.vertices);
   } catch (const pm::InputError& e) {
     throw pm::InputError(pm::quote(points) + ": " + e.what());
   }
@@ -259,7 +259,7 @@ int main(int argc, char** argv) {
     if (pts.vertices.size() < 4)
       throw pm::InputError(pm::quote(points) + ": " + std::to_string(pts.vertices.size()) +
                            " points; expected at least 4 particles");
-    pm::TetMesh tm = delaunay_of(points, pts);
+    pm::TetMesh tm = delaunay_of(points, pts, true);
     pm::TetLabelStats ls;
     {
       pm::ScopedStage s("label");

@@ -224,6 +224,7 @@ class MultiEngine {
   double measure();
   bool population_control(int level, std::uint64_t tag, bool final_check, MultiLevelStats& st);
   void keep_covered(std::vector<char>& del, std::size_t& ndel) const;
+  std::size_t repair_junctions();
   std::vector<char> project_candidates(std::vector<Candidate>& cands, int steps, const std::vector<double>& max_step);
   void thin(std::vector<Candidate>& cands, double fraction);
   void add_particles(const std::vector<Candidate>& cands, const std::vector<char>& ok, int level);
@@ -554,6 +555,75 @@ void MultiEngine::keep_covered(std::vector<char>& del, std::size_t& ndel) const 
     }
 }
 
+// After the surfaces: two surface particles of different interfaces that
+// share a material ({a,b}, {a,c}) closer than a quarter spacing sit where the
+// interfaces meet on a triple curve that the curve level did not sample
+// (tightening moves junctions; seeds are only near most of them). Such a
+// pair is replaced by one particle projected onto the triple junction
+// {a,b,c}, when the projection lands within half a spacing and no curve or
+// point particle is already there. Otherwise the Delaunay mesh gets a sliver
+// spanning the two interfaces. Sequential in bin order: deterministic.
+std::size_t MultiEngine::repair_junctions() {
+  rebin();
+  const std::size_t n = parts_.size();
+  std::vector<char> gone(n, 0);
+  std::vector<MP> added;
+  std::uint64_t ev = 0;
+  auto near_junction = [&](const Vec3& x, std::size_t bin, double r) {
+    const std::int32_t* nb = &bin_nbr_[bin * 27];
+    for (int k = 0; k < 27; ++k) {
+      if (nb[k] < 0) continue;
+      for (std::uint32_t q = bin_start_[std::size_t(nb[k])]; q < bin_start_[std::size_t(nb[k]) + 1]; ++q)
+        if (parts_[q].level < 2 && norm2(parts_[q].x - x) < r * r) return true;
+    }
+    for (const MP& a : added)
+      if (norm2(a.x - x) < r * r) return true;
+    return false;
+  };
+  for (std::size_t b = 0; b + 1 < bin_start_.size(); ++b)
+    for (std::uint32_t i = bin_start_[b]; i < bin_start_[b + 1]; ++i) {
+      if (gone[i] || parts_[i].level != 2) continue;
+      const JunctionCell& ci = cells_[std::size_t(parts_[i].cell)];
+      const std::int32_t* nb = &bin_nbr_[b * 27];
+      for (int k = 0; k < 27 && !gone[i]; ++k) {
+        if (nb[k] < 0) continue;
+        for (std::uint32_t j = bin_start_[std::size_t(nb[k])]; j < bin_start_[std::size_t(nb[k]) + 1]; ++j) {
+          const MP& P = parts_[i];
+          const MP& Q = parts_[j];
+          if (j == i || gone[j] || Q.level != 2 || Q.cell == P.cell) continue;
+          const double hmin = std::min(P.h, Q.h);
+          if (norm2(Q.x - P.x) >= 0.0625 * hmin * hmin) continue;
+          const JunctionCell& cj = cells_[std::size_t(Q.cell)];
+          std::vector<int> mats(ci.m.begin(), ci.m.begin() + 2);
+          for (int t = 0; t < 2; ++t)
+            if (!ci.contains(cj.m[std::size_t(t)])) mats.push_back(cj.m[std::size_t(t)]);
+          if (mats.size() != 3) continue;  // disjoint pairs: not one triple junction
+          const Vec3 mid = (P.x + Q.x) * 0.5;
+          MP q;
+          q.x = mid;
+          q.cell = cell_index(make_cell(mats));
+          if (!place(cells_[std::size_t(q.cell)], q.x, q.frame, q.h, q.resid, 20, hmin, ev)) continue;
+          if (norm2(q.x - mid) >= 0.25 * hmin * hmin || near_junction(q.x, b, 0.5 * q.h)) continue;
+          q.level = 1;
+          q.fixed = true;
+          q.lambda = std::min(1.0, kLambdaMaxPerH2 * q.h * q.h);
+          q.id = next_id_++;
+          added.push_back(q);
+          gone[i] = gone[j] = 1;
+          break;
+        }
+      }
+    }
+  evals_ += ev;
+  if (added.empty()) return 0;
+  scratch_.clear();
+  for (std::size_t i = 0; i < n; ++i)
+    if (!gone[i]) scratch_.push_back(parts_[i]);
+  for (const MP& q : added) scratch_.push_back(q);
+  parts_.swap(scratch_);
+  return added.size();
+}
+
 void MultiEngine::relax(int level, MultiLevelStats& st) {
   const int n_ideal = level == 1 ? 2 : 6;
   double d = 0;
@@ -679,6 +749,8 @@ MultiParticleResult MultiEngine::run(const std::vector<JunctionSeed>& seeds) {
                      " seeds reached a junction of the materials " + labels +
                      " (do the materials touch? are the seeds from the same label map?)");
   }
+
+  if (p_.surfaces && p_.repair_junctions) res.junction_repairs = repair_junctions();
 
   // Output, level by level, in a deterministic order (level, then bin order).
   std::stable_sort(parts_.begin(), parts_.end(), [](const MP& a, const MP& b) { return a.level < b.level; });

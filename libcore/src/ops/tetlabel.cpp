@@ -39,6 +39,33 @@ std::uint64_t edge_key(int a, int b) {
   return (std::uint64_t(std::uint32_t(a)) << 32) | std::uint32_t(b);
 }
 
+// TetGen asserts (aborts) on a flat bounding box: refuse degenerate input.
+void require_volume_spanning(const std::vector<Vec3>& points) {
+  const Vec3& p0 = points[0];
+  std::size_t i1 = 0, i2 = 0, i3 = 0;
+  double best = 0;
+  for (std::size_t i = 0; i < points.size(); ++i)
+    if (norm2(points[i] - p0) > best) best = norm2(points[i] - p0), i1 = i;
+  const double scale = std::sqrt(best);
+  const Vec3 dir = normalized(points[i1] - p0);
+  best = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Vec3 q = points[i] - p0;
+    const double d = norm2(q - dir * dot(q, dir));
+    if (d > best) best = d, i2 = i;
+  }
+  const Vec3 nrm = normalized(cross(points[i1] - p0, points[i2] - p0));
+  best = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const double d = std::fabs(dot(points[i] - p0, nrm));
+    if (d > best) best = d, i3 = i;
+  }
+  (void)i3;
+  if (!(scale > 0) || !(best > 1e-12 * scale))
+    throw InputError("delaunay: all " + std::to_string(points.size()) +
+                     " points are coplanar (or coincide); expected points spanning a volume");
+}
+
 }  // namespace
 
 TetMesh delaunay(const std::vector<Vec3>& points) {
@@ -46,32 +73,7 @@ TetMesh delaunay(const std::vector<Vec3>& points) {
     throw InputError("delaunay: " + std::to_string(points.size()) + " points; expected at least 4");
   for (std::size_t i = 0; i < points.size(); ++i)
     if (!is_finite(points[i])) throw InputError("delaunay: point " + std::to_string(i) + " is not finite");
-  // TetGen asserts (aborts) on a flat bounding box: refuse degenerate input here.
-  {
-    const Vec3& p0 = points[0];
-    std::size_t i1 = 0, i2 = 0, i3 = 0;
-    double best = 0;
-    for (std::size_t i = 0; i < points.size(); ++i)
-      if (norm2(points[i] - p0) > best) best = norm2(points[i] - p0), i1 = i;
-    const double scale = std::sqrt(best);
-    const Vec3 dir = normalized(points[i1] - p0);
-    best = 0;
-    for (std::size_t i = 0; i < points.size(); ++i) {
-      const Vec3 q = points[i] - p0;
-      const double d = norm2(q - dir * dot(q, dir));
-      if (d > best) best = d, i2 = i;
-    }
-    const Vec3 nrm = normalized(cross(points[i1] - p0, points[i2] - p0));
-    best = 0;
-    for (std::size_t i = 0; i < points.size(); ++i) {
-      const double d = std::fabs(dot(points[i] - p0, nrm));
-      if (d > best) best = d, i3 = i;
-    }
-    (void)i3;
-    if (!(scale > 0) || !(best > 1e-12 * scale))
-      throw InputError("delaunay: all " + std::to_string(points.size()) +
-                       " points are coplanar (or coincide); expected points spanning a volume");
-  }
+  require_volume_spanning(points);
   tetgenio in, out;
   in.numberofpoints = int(points.size());
   in.pointlist = new REAL[points.size() * 3];
@@ -116,6 +118,41 @@ TetMesh delaunay(const std::vector<Vec3>& points) {
     }
     tm.tets[t] = v;
     tm.neighbours[t] = n;
+  }
+  return tm;
+}
+
+TetMesh delaunay_enclosed(const std::vector<Vec3>& points) {
+  if (points.size() < 4)
+    throw InputError("delaunay: " + std::to_string(points.size()) + " points; expected at least 4");
+  for (std::size_t i = 0; i < points.size(); ++i)
+    if (!is_finite(points[i])) throw InputError("delaunay: point " + std::to_string(i) + " is not finite");
+  require_volume_spanning(points);
+  std::vector<Vec3> all = points;
+  Box bb;
+  for (const Vec3& x : points) bb.extend(x);
+  const double pad = norm(bb.size()) + 1.0;
+  for (int c = 0; c < 8; ++c)
+    all.push_back({c & 1 ? bb.hi.x + pad : bb.lo.x - pad, c & 2 ? bb.hi.y + pad : bb.lo.y - pad,
+                   c & 4 ? bb.hi.z + pad : bb.lo.z - pad});
+  TetMesh full = delaunay(all);
+  const int n = int(points.size());
+  std::vector<int> keep_index(full.tets.size(), -1);
+  TetMesh tm;
+  tm.points = points;
+  for (std::size_t t = 0; t < full.tets.size(); ++t) {
+    const auto& v = full.tets[t];
+    if (v[0] < n && v[1] < n && v[2] < n && v[3] < n) {
+      keep_index[t] = int(tm.tets.size());
+      tm.tets.push_back(v);
+    }
+  }
+  tm.neighbours.reserve(tm.tets.size());
+  for (std::size_t t = 0; t < full.tets.size(); ++t) {
+    if (keep_index[t] < 0) continue;
+    std::array<int, 4> nb = full.neighbours[t];
+    for (int& q : nb) q = q >= 0 ? keep_index[std::size_t(q)] : -1;
+    tm.neighbours.push_back(nb);
   }
   return tm;
 }

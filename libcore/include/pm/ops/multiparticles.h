@@ -71,6 +71,9 @@ struct MultiParticleParams {
   int population_interval = 50;  ///< sweeps between population checks while not converged
   double population_tolerance = 0.001;  ///< converged with at most this fraction wanting to split/die
   bool surfaces = true;        ///< sample the 2-cells (false: stop after the curves)
+  /// After the surfaces: merge surface particles of two interfaces sharing a
+  /// material that are closer than h/4 into one triple-junction particle.
+  bool repair_junctions = true;
   /// Quadruple points of one label quad closer than this fraction of the
   /// local spacing are one point (cull radius).
   double cull_fraction = 0.5;
@@ -111,6 +114,9 @@ struct MultiParticleResult {
   std::array<MultiLevelStats, 3> levels;
   double max_residual = 0;
   std::uint64_t field_evaluations = 0;
+  /// Pairs of surface particles of two interfaces sharing a material, closer
+  /// than h/4, replaced by one particle on their triple junction.
+  std::size_t junction_repairs = 0;
 };
 
 /// Sample every junction of the material set.

@@ -26,6 +26,15 @@ struct TetMesh {
 /// all points are coplanar, or TetGen fails (its error code is named).
 TetMesh delaunay(const std::vector<Vec3>& points);
 
+/// delaunay() of `points` plus the 8 corners of a box around them (enlarged
+/// by their bounding-box diagonal on every side); tetrahedra with a corner
+/// are dropped, so their faces become hull faces (neighbour -1) and
+/// `points` keeps only the input points. No input point lies on the convex
+/// hull then: a flat patch of the surface (a mask cut by the volume border)
+/// is not a hull facet, whose coplanar points TetGen would join by slivers
+/// up to the far end of the hull.
+TetMesh delaunay_enclosed(const std::vector<Vec3>& points);
+
 /// Material label at a world point (e.g. 1 inside, 0 outside; or argmax f_i).
 using LabelFunction = std::function<int(const Vec3&)>;
 
