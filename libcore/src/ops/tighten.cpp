@@ -369,7 +369,7 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
   band_gather(band, phi, cur);
   next = cur;
   const double dt = 0.45 / (1 / (h[0] * h[0]) + 1 / (h[1] * h[1]) + 1 / (h[2] * h[2]));
-  const int max_it = p.max_iterations > 0 ? p.max_iterations : int(40 * (r / hmin) * (r / hmin)) + 200;
+  const int max_it = p.max_iterations > 0 ? p.max_iterations : int(20 * (r / hmin) * (r / hmin)) + 160;
   DistanceParams reinit;
   reinit.band = 2 * w;
   const std::size_t sy = wd.nx, sz = wd.nx * wd.ny;

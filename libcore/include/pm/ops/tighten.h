@@ -33,7 +33,7 @@ struct TightenParams {
   /// interpolation of the 0/1 mask, level 0.5), for r below a voxel or so.
   /// The output grid has spacing h/K and (n-1)K+1 nodes per axis.
   int upsample = 1;
-  /// Flow steps; 0 = automatic: until converged, at most 40 (r/h)² + 200.
+  /// Flow steps; 0 = automatic: until converged, at most 20 (r/h)² + 160.
   int max_iterations = 0;
   /// Converged when no node next to the zero set moves more than
   /// tolerance · h in a step (voxels).
