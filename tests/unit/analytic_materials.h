@@ -101,6 +101,16 @@ inline MaterialSet four_tetrahedral(double half = 1.0) {
   return m;
 }
 
+/// Indicator of a ball: f = r - |x - c| (positive inside), for add_material.
+inline std::function<double(const Vec3&, Vec3&)> ball(Vec3 c, double r) {
+  return [c, r](const Vec3& x, Vec3& g) {
+    const Vec3 d = x - c;
+    const double l = norm(d);
+    g = l > 0 ? -(d / l) : Vec3{};
+    return r - l;
+  };
+}
+
 /// Background 0 (f = 0), sphere 1 (centre (-0.3,0,0), radius 0.5) and sphere
 /// 2 (centre (0.3,0,0), radius 0.4), f = radius - distance to the centre. The
 /// spheres overlap: their triple circle with the background lies at x = 0.075.
@@ -113,16 +123,8 @@ inline MaterialSet two_spheres(double half = 1.0) {
         return 0.0;
       },
       cube(half));
-  auto sphere = [](Vec3 c, double r) {
-    return [c, r](const Vec3& x, Vec3& g) {
-      const Vec3 d = x - c;
-      const double l = norm(d);
-      g = l > 0 ? -(d / l) : Vec3{};
-      return r - l;
-    };
-  };
-  add_material(m, 1, sphere({-0.3, 0, 0}, 0.5), cube(half));
-  add_material(m, 2, sphere({0.3, 0, 0}, 0.4), cube(half));
+  add_material(m, 1, ball({-0.3, 0, 0}, 0.5), cube(half));
+  add_material(m, 2, ball({0.3, 0, 0}, 0.4), cube(half));
   return m;
 }
 

@@ -217,18 +217,10 @@ MaterialSet short_and_long_circles() {
         return 0.0;
       },
       test::cube(1.0));
-  auto sphere = [](Vec3 c, double r) {
-    return [c, r](const Vec3& x, Vec3& g) {
-      const Vec3 d = x - c;
-      const double l = norm(d);
-      g = l > 0 ? -(d / l) : Vec3{};
-      return r - l;
-    };
-  };
-  test::add_material(m, 1, sphere({-0.55, 0, 0}, 0.2), test::cube(1.0));
-  test::add_material(m, 2, sphere({-0.3, 0, 0}, 0.15), test::cube(1.0));
-  test::add_material(m, 3, sphere({0.35, 0, 0}, 0.4), test::cube(1.0));
-  test::add_material(m, 4, sphere({0.6, 0, 0}, 0.35), test::cube(1.0));
+  test::add_material(m, 1, test::ball({-0.55, 0, 0}, 0.2), test::cube(1.0));
+  test::add_material(m, 2, test::ball({-0.3, 0, 0}, 0.15), test::cube(1.0));
+  test::add_material(m, 3, test::ball({0.35, 0, 0}, 0.4), test::cube(1.0));
+  test::add_material(m, 4, test::ball({0.6, 0, 0}, 0.35), test::cube(1.0));
   return m;
 }
 

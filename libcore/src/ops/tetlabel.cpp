@@ -39,8 +39,13 @@ std::uint64_t edge_key(int a, int b) {
   return (std::uint64_t(std::uint32_t(a)) << 32) | std::uint32_t(b);
 }
 
-// TetGen asserts (aborts) on a flat bounding box: refuse degenerate input.
+// At least 4 finite points spanning a volume (TetGen asserts, i.e. aborts,
+// on a flat bounding box): refuse degenerate input here.
 void require_volume_spanning(const std::vector<Vec3>& points) {
+  if (points.size() < 4)
+    throw InputError("delaunay: " + std::to_string(points.size()) + " points; expected at least 4");
+  for (std::size_t i = 0; i < points.size(); ++i)
+    if (!is_finite(points[i])) throw InputError("delaunay: point " + std::to_string(i) + " is not finite");
   const Vec3& p0 = points[0];
   std::size_t i1 = 0, i2 = 0, i3 = 0;
   double best = 0;
@@ -69,10 +74,6 @@ void require_volume_spanning(const std::vector<Vec3>& points) {
 }  // namespace
 
 TetMesh delaunay(const std::vector<Vec3>& points) {
-  if (points.size() < 4)
-    throw InputError("delaunay: " + std::to_string(points.size()) + " points; expected at least 4");
-  for (std::size_t i = 0; i < points.size(); ++i)
-    if (!is_finite(points[i])) throw InputError("delaunay: point " + std::to_string(i) + " is not finite");
   require_volume_spanning(points);
   tetgenio in, out;
   in.numberofpoints = int(points.size());
@@ -123,10 +124,6 @@ TetMesh delaunay(const std::vector<Vec3>& points) {
 }
 
 TetMesh delaunay_enclosed(const std::vector<Vec3>& points) {
-  if (points.size() < 4)
-    throw InputError("delaunay: " + std::to_string(points.size()) + " points; expected at least 4");
-  for (std::size_t i = 0; i < points.size(); ++i)
-    if (!is_finite(points[i])) throw InputError("delaunay: point " + std::to_string(i) + " is not finite");
   require_volume_spanning(points);
   std::vector<Vec3> all = points;
   Box bb;
