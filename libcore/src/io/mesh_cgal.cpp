@@ -115,6 +115,16 @@ void check_off_facet_counts(const std::string& path) {
   for (int i = 0; i < 4; ++i) {
     skip_space_and_comments();
     const std::size_t b = pos;
+    if (i == 0) {
+      // The keyword as CGAL reads it: its first character, then letters and
+      // digits; the character that ends it is consumed ("OFF\x0f4 4 0" is
+      // keyword OFF with 4 vertices; fuzz_off, tests/data/regress/off-keyword-index).
+      if (pos < text.size()) ++pos;
+      while (pos < text.size() && std::isalnum(static_cast<unsigned char>(text[pos]))) ++pos;
+      head[0] = text.substr(b, pos - b);
+      if (pos < text.size()) ++pos;
+      continue;
+    }
     while (pos < text.size() && !std::isspace(static_cast<unsigned char>(text[pos])) && text[pos] != '#') ++pos;
     head[i] = text.substr(b, pos - b);
     if (i == 1 && head[0] == "OFF" && head[1] == "BINARY") {
@@ -137,7 +147,10 @@ void check_off_facet_counts(const std::string& path) {
       return;
     }
   }
-  if (head[0] != "OFF") return;
+  // OFF and its variants with per-line records and no dimension line (COFF,
+  // NOFF, STOFF, 4OFF, ...); nOFF is left to CGAL.
+  const std::string& kw = head[0];
+  if (kw.size() < 3 || kw.compare(kw.size() - 3, 3, "OFF") != 0 || kw.find('n') != std::string::npos) return;
   long long nv = 0, nf = 0;
   try {
     nv = std::stoll(head[1]);
@@ -163,13 +176,28 @@ void check_off_facet_counts(const std::string& path) {
     if (!next_record(rec)) return;  // truncated: CGAL reports it
   for (long long f = 0; f < nf; ++f) {
     if (!next_record(rec)) return;
+    // CGAL splits the record by reading doubles from it ("1-2" is 1 and -2),
+    // converts the first to the vertex count and resizes the facet with it,
+    // then converts each index, all from double to std::size_t unchecked:
+    // undefined for values <= -1, NaN or beyond 2^64, and a count beyond the
+    // file's size exhausts memory (fuzz_off, tests/data/regress/off-*).
+    const auto num = [](double v) {
+      std::ostringstream o;
+      o << v;
+      return o.str();
+    };
     std::istringstream ls(rec);
-    std::string w;
-    ls >> w;
-    const double c = std::strtod(w.c_str(), nullptr);
-    if (!(c > -1 && c < 1e18))
+    double c = 0;
+    if (!(ls >> c)) continue;  // CGAL reports the malformed record
+    const double limit = double(text.size());
+    if (!(c > -1 && c <= limit))
       throw InputError("read_off: " + quote(path) + ": facet " + std::to_string(f) + " has vertex count " +
-                       quote(w) + "; expected an integer >= 3");
+                       num(c) + "; expected an integer >= 3, at most the file's size");
+    double idx = 0;
+    for (long long k = 0; k < static_cast<long long>(c) && ls >> idx; ++k)
+      if (!(idx > -1 && idx < 1e18))
+        throw InputError("read_off: " + quote(path) + ": facet " + std::to_string(f) + " has vertex index " +
+                         num(idx) + "; expected an integer in [0, " + std::to_string(nv) + ")");
   }
 }
 
