@@ -396,23 +396,27 @@ void run_batch(const Frame& fr, const Vec3* x, std::size_t n, double* f, Vec3* g
 // index-space position, computed by the very expression locate_world()
 // uses, so evaluation reads the items in order instead of the caller's
 // array at random; each range of the first digit is sorted by the second
-// and evaluated at once, while it is in cache. Value and gradient go back
-// into the item's slot and a final pass copies them to the caller's
-// positions (reads at random, writes in order: cheaper than writing the
-// outputs at random). The order changes no arithmetic: results stay
+// into a small buffer that stays in cache (reused range after range) and
+// evaluated at once. Value and gradient go back into the item's slot of the
+// first-digit order (its range was just read, so that is in cache too) and
+// a final pass copies them to the caller's positions, one random read per
+// point (reads at random, writes in order: cheaper than writing the outputs
+// at random). The order changes no arithmetic: results stay
 // bit-identical to the single-point call. Measured on 256³ (1M bricks),
 // B-spline value+gradient at uniformly random points, busy 2-core VM: the
 // sort pays from ~128k points (1 per 8 bricks) and doubles the rate at 1M.
 constexpr std::size_t kSortChunk = std::size_t(1) << 20;  // points sorted together at most
 constexpr int kMaxKeyBits = 20;  // bits of the brick index kept at most (finer: low bits dropped)
 constexpr std::size_t kFar = 16;  // the gather prefetches this many points ahead
+constexpr std::size_t kAhead = 8;  // evaluation in brick order prefetches Hessian slots this many points ahead
 
-// A point in the sort: its index-space position and where it came from;
-// after evaluation the same slot holds its value and gradient.
+// A point in the sort: its index-space position and its slot in the
+// first-digit order; after evaluation that slot holds its value and
+// gradient.
 union SortItem {
   struct {
     double t[3];        // index-space position
-    std::uint32_t idx;  // position in the caller's arrays
+    std::uint32_t idx;  // slot in the first-digit order (s.b)
     std::uint32_t low;  // low digit of the key
   } in;
   struct {
@@ -423,10 +427,11 @@ static_assert(sizeof(SortItem) == 32, "two items per cache line");
 
 // Per-thread scratch of the sort (the batch calls are const and may run
 // concurrently from several threads; each runs one batch at a time). One
-// block, grown to the largest chunk sorted on the thread (72 bytes per
-// point, 144 with Hessians: 72 / 144 MiB for 2^20 points) and kept for
+// block, grown to the largest chunk sorted on the thread (68 bytes per
+// point, 140 with Hessians: 68 / 140 MiB for 2^20 points) and kept for
 // reuse; on transparent huge pages where Linux grants them, as the gather
-// reads it at random.
+// reads it at random. The range buffer `a` has room for a whole chunk, as
+// clustered points may all fall in one range.
 class SortScratch {
  public:
   SortScratch() = default;
@@ -438,7 +443,7 @@ class SortScratch {
     if (n <= cap_ && (!hessians || hess)) return;
     constexpr std::size_t huge = std::size_t(2) << 20;
     const std::size_t per_point =
-        2 * sizeof(SortItem) + 2 * sizeof(std::uint32_t) + (hessians ? sizeof(Mat3) : std::size_t(0));
+        2 * sizeof(SortItem) + sizeof(std::uint32_t) + (hessians ? sizeof(Mat3) : std::size_t(0));
     const std::size_t n2 = (n + 1) / 2 * 2;  // b starts on a cache line
     const std::size_t bytes = (n2 * per_point + huge - 1) / huge * huge;
     std::free(mem_);
@@ -453,13 +458,12 @@ class SortScratch {
     b = a + n2;
     hess = hessians ? reinterpret_cast<Mat3*>(b + n2) : nullptr;
     key = reinterpret_cast<std::uint32_t*>(hessians ? static_cast<void*>(hess + n2) : static_cast<void*>(b + n2));
-    place2 = key + n;
     cap_ = n;
   }
-  SortItem *a = nullptr, *b = nullptr;  // items, sorted by both digits (a) and the first (b)
-  Mat3* hess = nullptr;                  // Hessians in the order of a
-  std::uint32_t* key = nullptr;          // bucket keys, then each point's place after the first digit
-  std::uint32_t* place2 = nullptr;       // an item's place after the second digit, by its first place
+  SortItem* a = nullptr;          // one range of b sorted by the second digit, at a[0 ..)
+  SortItem* b = nullptr;          // items sorted by the first digit; then their results
+  Mat3* hess = nullptr;           // Hessians in the order of b
+  std::uint32_t* key = nullptr;   // bucket keys, then each point's place in b
   std::vector<std::uint32_t> low_count;
 
  private:
@@ -536,7 +540,7 @@ __attribute__((noinline)) void sort_first_digit(const Frame& fr, const Vec3* x, 
     it.in.t[0] = t.x;
     it.in.t[1] = t.y;
     it.in.t[2] = t.z;
-    it.in.idx = std::uint32_t(i);
+    it.in.idx = j;
     it.in.low = k & low_mask;
     place[i] = j;
 #if PM_STREAM_STORES
@@ -564,74 +568,74 @@ __attribute__((noinline)) void sort_first_digit(const Frame& fr, const Vec3* x, 
 #endif
 }
 
-// Sorts range [begin, end) of s.b by the low digit into s.a and sets
-// s.place2[i] to where item i of s.b went. Returns the range's first item.
-// A range is a few thousand points at most for uniform points: it stays in
-// cache for the evaluation that follows.
+// Sorts range [begin, end) of s.b by the low digit into s.a[0 .. end -
+// begin) and returns s.a. The same buffer serves every range: a range is a
+// few thousand points at most for uniform points, so it stays in cache for
+// the evaluation that follows.
 __attribute__((noinline)) SortItem* sort_range(SortScratch& s, int low, std::size_t begin, std::size_t end) {
   SortItem *a = s.a, *b = s.b;
-  if (end - begin == 1) {
-    a[begin] = b[begin];
-    s.place2[begin] = std::uint32_t(begin);
-    return a + begin;
-  }
   std::vector<std::uint32_t>& lc = s.low_count;
   lc.assign(std::size_t(1) << low, 0u);
   for (std::size_t i = begin; i < end; ++i) ++lc[b[i].in.low];
-  std::uint32_t sum = std::uint32_t(begin);
+  std::uint32_t sum = 0;
   for (std::uint32_t& c : lc) {
     const std::uint32_t m = c;
     c = sum;
     sum += m;
   }
-  for (std::size_t i = begin; i < end; ++i) {
-    const std::uint32_t j = lc[b[i].in.low]++;
-    a[j] = b[i];
-    s.place2[i] = j;
-  }
-  return a + begin;
+  for (std::size_t i = begin; i < end; ++i) a[lc[b[i].in.low]++] = b[i];
+  return a;
 }
 
 // The pipeline of run_batch over sorted items: item i + kLookahead is
 // located before item i is reconstructed; value and gradient go to the
-// item's own slot (its position is no longer needed), the Hessian to
-// hess[i]. Without Prefetch, locate() issues no prefetches: with a point
-// per brick or more the lines are mostly cached already and the hardware
-// prefetcher follows the order (measured: faster at 1 point per brick,
-// slower at 1 per 4).
+// item's slot in `out` (s.b: in.idx; `items` may be that very array, an
+// item's position being no longer needed once located), the Hessian to
+// hess[in.idx]. Without Prefetch, locate() issues no prefetches: with a
+// point per brick or more the lines are mostly cached already and the
+// hardware prefetcher follows the order (measured: faster at 1 point per
+// brick, slower at 1 per 4).
 template <int Order, AccumulateFn Acc, bool Prefetch>
-void evaluate_sorted(const Frame& fr, SortItem* items, std::size_t n, Mat3* hess) {
+void evaluate_sorted(const Frame& fr, const SortItem* items, std::size_t n, SortItem* out, Mat3* hess) {
   Taps ring[kRing];
   for (std::size_t k = 0; k < n && k < kLookahead; ++k) locate<Prefetch>(fr.grid, items[k].in.t, ring[k]);
   for (std::size_t i = 0; i < n; ++i) {
     if (i + kLookahead < n)
       locate<Prefetch>(fr.grid, items[i + kLookahead].in.t, ring[(i + kLookahead) % kRing]);
+#if defined(__GNUC__)
+    if constexpr (Order >= 2)  // the Hessians' slots are written in random order: fetch them early
+      if (i + kAhead < n) {
+        const Mat3* hp = hess + items[i + kAhead].in.idx;
+        __builtin_prefetch(hp, 1);
+        __builtin_prefetch(reinterpret_cast<const char*>(hp) + sizeof(Mat3) - 1, 1);
+      }
+#endif
+    const std::uint32_t slot = items[i].in.idx;
     double g[3], h[6];
     const double f = Acc(fr.grid, ring[i % kRing], g, h);
-    if constexpr (Order >= 2) hessian_to_world(fr.inv_dirs, h, hess[i]);
-    items[i].out.f = f;
+    if constexpr (Order >= 2) hessian_to_world(fr.inv_dirs, h, hess[slot]);
+    SortItem& o = out[slot];
+    o.out.f = f;
     if constexpr (Order >= 1) {
       const Vec3 gw = gradient_to_world(fr.inv_dirs, g);
-      items[i].out.g[0] = gw.x;
-      items[i].out.g[1] = gw.y;
-      items[i].out.g[2] = gw.z;
+      o.out.g[0] = gw.x;
+      o.out.g[1] = gw.y;
+      o.out.g[2] = gw.z;
     }
   }
 }
 
-// Results back to the caller's order: point i's item is items[at(i)] with
-// at(i) = place2[place[i]] (place[i] without a second digit). Reads the
-// items (and Hessians) at random, one line each, two for a Hessian,
-// prefetched; writes the outputs in order.
+// Results back to the caller's order: point i's results are in
+// items[place[i]] (and hs[place[i]]). Reads the items (and Hessians) at
+// random, one line each, two for a Hessian, prefetched; writes the outputs
+// in order.
 template <int Order>
-void gather_results(const SortItem* items, const Mat3* hs, const std::uint32_t* place, const std::uint32_t* place2,
-                    std::size_t n, double* f, Vec3* grad, Mat3* hess) {
-  auto at = [place, place2](std::size_t i) { return place2 ? place2[place[i]] : place[i]; };
+void gather_results(const SortItem* items, const Mat3* hs, const std::uint32_t* place, std::size_t n, double* f,
+                    Vec3* grad, Mat3* hess) {
   for (std::size_t i = 0; i < n; ++i) {
 #if defined(__GNUC__)
-    if (place2 && i + 2 * kFar < n) __builtin_prefetch(place2 + place[i + 2 * kFar]);
     if (i + kFar < n) {
-      const std::size_t j = at(i + kFar);
+      const std::size_t j = place[i + kFar];
       __builtin_prefetch(items + j);
       if constexpr (Order >= 2) {
         __builtin_prefetch(hs + j);
@@ -639,7 +643,7 @@ void gather_results(const SortItem* items, const Mat3* hs, const std::uint32_t* 
       }
     }
 #endif
-    const std::size_t j = at(i);
+    const std::size_t j = place[i];
     const SortItem& it = items[j];
     f[i] = it.out.f;
     if constexpr (Order >= 1) grad[i] = Vec3(it.out.g[0], it.out.g[1], it.out.g[2]);
@@ -654,16 +658,18 @@ void run_sorted_chunk(const Frame& fr, const Vec3* x, std::size_t n, double* f, 
   SortPlan plan;
   sort_first_digit(fr, x, n, Order >= 2, s, plan);
   if (plan.low == 0) {  // one digit: sorted
-    evaluate_sorted<Order, Acc, Prefetch>(fr, s.b, n, s.hess);
-    gather_results<Order>(s.b, s.hess, s.key, nullptr, n, f, grad, hess);
-    return;
+    evaluate_sorted<Order, Acc, Prefetch>(fr, s.b, n, s.b, s.hess);
+  } else {
+    // Each range by its low digit, then evaluated while it is in cache.
+    for (std::size_t d = 0, begin = 0; d < (std::size_t(1) << plan.high); begin = plan.end[d++]) {
+      const std::size_t m = plan.end[d] - begin;
+      if (m == 1)
+        evaluate_sorted<Order, Acc, Prefetch>(fr, s.b + begin, 1, s.b, s.hess);
+      else if (m > 1)
+        evaluate_sorted<Order, Acc, Prefetch>(fr, sort_range(s, plan.low, begin, plan.end[d]), m, s.b, s.hess);
+    }
   }
-  // Each range by its low digit, then evaluated while it is in cache.
-  for (std::size_t d = 0, begin = 0; d < (std::size_t(1) << plan.high); begin = plan.end[d++])
-    if (plan.end[d] > begin)
-      evaluate_sorted<Order, Acc, Prefetch>(fr, sort_range(s, plan.low, begin, plan.end[d]), plan.end[d] - begin,
-                                            Order >= 2 ? s.hess + begin : nullptr);
-  gather_results<Order>(s.a, s.hess, s.key, s.place2, n, f, grad, hess);
+  gather_results<Order>(s.b, s.hess, s.key, n, f, grad, hess);
 }
 
 // True when the points x[0..n) already come in a coherent order (mostly

@@ -25,8 +25,8 @@ struct VolumeFieldParams {
   /// the memory order of their voxel bricks and write each result to the
   /// caller's position: bit-identical, faster at random points in a volume
   /// larger than the caches once a batch is dense enough. The radix sort
-  /// works on up to 2^20 points at a time in per-thread scratch of 72 bytes
-  /// per point (144 with Hessians), kept for reuse (std::bad_alloc if it
+  /// works on up to 2^20 points at a time in per-thread scratch of 68 bytes
+  /// per point (140 with Hessians), kept for reuse (std::bad_alloc if it
   /// cannot grow). 0 (default): automatic, sorted when the voxels take more
   /// than 32 MiB and the batch has at least one point per four bricks (a
   /// brick is 4x2x2 voxels; 262144 points for 256³), where it measured
