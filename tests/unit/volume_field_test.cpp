@@ -504,6 +504,28 @@ TEST(VolumeField, SortedBatchIsBitIdenticalToSinglePointCalls) {
   }
 }
 
+TEST(VolumeField, SortedBatchOfClusteredPoints) {
+  // Brick order with ranges of very different sizes: most points in one
+  // small cluster (a range of the first radix digit holding nearly the whole
+  // batch, which the reused range buffer must take) and the rest spread out
+  // (ranges of one or a few points, evaluated from the same buffer after the
+  // big one); Hessians included (their slots are written in random order).
+  const Volume v = random_volume(Dims{37, 22, 19}, oblique_geometry(), 12);
+  std::vector<Vec3> pts = many_points(v, 300, 2);  // spread out, awkward points included
+  std::mt19937 rng(6);
+  std::normal_distribution<double> near(0.0, 0.7);  // voxels
+  while (pts.size() < 6000) pts.push_back(v.geometry().index_to_world(Vec3(20 + near(rng), 11 + near(rng), 9 + near(rng))));
+  std::shuffle(pts.begin(), pts.end(), rng);
+  for (VolumeFieldParams p : {kBspline, VolumeFieldParams::chapter5_mix()})
+    for (bool avx2 : {true, false}) {
+      p.allow_avx2 = avx2;
+      p.sort_min_batch = 2;
+      const VolumeField f(v, p);
+      expect_batch_matches_single(f, pts, f.describe() + (f.uses_avx2() ? " avx2" : " baseline") + " clustered",
+                                  {pts.size(), 1000, 17});
+    }
+}
+
 TEST(VolumeField, SortedBatchBeyondOneSortChunk) {
   // Batches are sorted 2^20 points at a time: one batch across that boundary.
   const Volume v = random_volume(Dims{37, 22, 19}, oblique_geometry(), 5);
