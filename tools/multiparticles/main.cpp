@@ -23,7 +23,6 @@ void record_stats(const pm::MultiParticleResult& r) {
   auto& st = pm::stats();
   const char* names[3] = {"points", "curves", "surfaces"};
   pm::Json levels = pm::Json::object();
-  std::size_t total = 0;
   for (int l = 0; l < 3; ++l) {
     const pm::MultiLevelStats& s = r.levels[std::size_t(l)];
     levels[names[l]] = {{"particles", s.particles},     {"cells", s.cells},
@@ -33,10 +32,8 @@ void record_stats(const pm::MultiParticleResult& r) {
                         {"splits", s.splits},           {"deletions", s.deletions},
                         {"energy_final", s.energy_final}, {"energy_ideal", s.energy_ideal}};
     pm::add_seconds(names[l], s.seconds);
-    total += s.particles;
   }
   st["levels"] = levels;
-  (void)total;
   st["counts"] = {{"particles", r.positions.size()},
                   {"field_evaluations", r.field_evaluations},
                   {"junction_repairs", r.junction_repairs}};

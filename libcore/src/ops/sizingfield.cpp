@@ -53,7 +53,7 @@ class KdTree {
     int axis = -1;           // -1: leaf
     double split = 0;
     std::size_t left = 0, right = 0;
-    double lo[3], hi[3];  // tight bounding box of the node's points
+    double lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};  // tight bounding box of the node's points
   };
 
   static double box_d2(const Node& n, const Vec3& x) {

@@ -383,12 +383,11 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
       res.converged = true;
       break;
     }
-    // Re-distancing keeps the field healthy while the zero set moves fast;
-    // near convergence it only perturbs the flow, so it stops there.
-    // Re-distance only when the field has drifted from a distance function
-    // at the zero set (the clamping to the round and fillet distances keeps it
-    // close to one in most cases, and each re-distancing costs a transform of
-    // the working box).
+    // Re-distance only while the zero set still moves (near convergence it
+    // would only perturb the flow) and only when the field has drifted from a
+    // distance function at the zero set: the clamping to the round and fillet
+    // distances keeps it close to one in most cases, and each re-distancing
+    // costs a transform of the working box.
     if (it % p.reinit_every == 0 && res.last_change > 10 * p.tolerance &&
         gradient_defect(band, cur, h) > kReinitDefect) {
       ++res.reinits;
