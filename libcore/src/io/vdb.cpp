@@ -11,6 +11,7 @@
 #include <mutex>
 #include <new>
 #include <sstream>
+#include <stdexcept>
 
 #include "pm/base/atomic_file.h"
 #include "pm/base/error.h"
@@ -101,6 +102,10 @@ Volume read_vdb(const std::string& path, const std::string& grid_name) {
     throw InputError(where + ": truncated or corrupt VDB data (a read went past the end of the file)");
   } catch (const std::bad_alloc&) {
     throw InputError(where + ": corrupt VDB data (a size field asks for more memory than there is)");
+  } catch (const std::length_error&) {
+    // A container sized from the file beyond max_size() (fuzz_vdb,
+    // tests/data/regress/vdb-length-error).
+    throw InputError(where + ": corrupt VDB data (a size field is larger than any container can hold)");
   }
 }
 
