@@ -122,6 +122,59 @@ TEST(ReaderHardening, MeshAbsurdCountsFailFast) {
   expect_input_error([&] { read_mesh(dir + "/huge.ply"); }, {"huge.ply"});
 }
 
+// CGAL's OFF scanner indexes colour values by an unchecked count and casts
+// them unchecked; the OFF check refuses what would reach that, and keeps the
+// colour variants CGAL reads correctly.
+TEST(ReaderHardening, OffColourRecordsAreCheckedBeforeCgalReadsThem) {
+  const std::string dir = test::temp_dir();
+  const std::string faces = "3 0 1 2\n3 0 3 1\n3 1 3 2\n3 2 3 0\n";
+  const auto off = [&](const std::string& name, const std::string& text) {
+    write_bytes(dir + "/" + name, text);
+    return dir + "/" + name;
+  };
+  // Accepted: colour per vertex as RGB integers, RGBA floats or a map index,
+  // and CNOFF with normals before the colour; the geometry is read exactly.
+  for (const std::string& v : {std::string("0 0 0 255 0 0\n1 0 0 0 255 0\n0 1 0 0 0 255\n0 0 1 9 9 9\n"),
+                               std::string("0 0 0 1 0 0 1\n1 0 0 0 .5 0 1\n0 1 0 0 0 1 1\n0 0 1 .2 .2 .2 1\n"),
+                               std::string("0 0 0 7\n1 0 0 0\n0 1 0 148\n0 0 1 3\n")}) {
+    const Mesh m = read_mesh(off("ok.off", "COFF\n4 4 6\n" + v + faces));
+    ASSERT_EQ(m.vertices.size(), 4u);
+    EXPECT_EQ(m.faces.size(), 4u);
+    EXPECT_EQ(m.vertices[1].x, 1.0);
+    EXPECT_EQ(m.vertices[3].z, 1.0);
+  }
+  const Mesh cn = read_mesh(off("cn.off", "CNOFF\n4 4 6\n0 0 0 0 0 1 255 0 0\n1 0 0 0 0 1 0 255 0\n"
+                                          "0 1 0 0 0 1 0 0 255\n0 0 1 0 0 1 9 9 9\n" + faces));
+  EXPECT_EQ(cn.vertices[2].y, 1.0);
+  EXPECT_EQ(cn.faces.size(), 4u);
+  // Refused, naming the record.
+  const std::string ok = "1 0 0 0 255 0\n0 1 0 0 0 255\n0 0 1 9 9 9\n";
+  expect_input_error([&] { read_mesh(off("a.off", "COFF\n4 4 6\n0 0\n" + ok + faces)); },
+                     {"a.off", "vertex 0 has 2 numbers; expected at least 3"});
+  expect_input_error([&] { read_mesh(off("b.off", "COFF\n4 4 6\n0 0 0 1 2\n" + ok + faces)); },
+                     {"b.off", "vertex 0 has 2 colour values"});
+  expect_input_error([&] { read_mesh(off("c.off", "COFF\n4 4 6\n0 0 0 255 0 0\n1 0 0\n0 1 0 0 0 255\n0 0 1 9 9 9\n" + faces)); },
+                     {"c.off", "vertex 1 has 0 colour values", "earlier records have colour"});
+  expect_input_error([&] { read_mesh(off("d.off", "COFF\n4 4 6\n0 0 0 300 0 0\n" + ok + faces)); },
+                     {"d.off", "vertex 0 has colour value 300"});
+  expect_input_error([&] { read_mesh(off("e.off", "COFF\n4 4 6\n0 0 0 -5\n1 0 0 0\n0 1 0 0\n0 0 1 0\n" + faces)); },
+                     {"e.off", "vertex 0 has colour-map index -5"});
+  expect_input_error([&] { read_mesh(off("f.off", "COFF\n4 4 6\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2 1 0 0\n3 0 3 1\n3 1 3 2\n3 2 3 0\n")); },
+                     {"f.off", "facet 1 has 0 colour values"});
+  expect_input_error([&] { read_mesh(off("g.off", "STOFF\n4 4 6\n0 0 0 0 0\n1 0 0 1 0\n0 1 0 0 1\n0 0 1 1 1\n" + faces)); },
+                     {"g.off", "texture coordinates without colours"});
+  // Binary OFF: a negative facet vertex count would become a huge size_t.
+  std::string bin = "OFF BINARY\n";
+  const auto be32 = [&](std::uint32_t u) {
+    for (int k = 3; k >= 0; --k) bin += char((u >> (8 * k)) & 0xff);
+  };
+  be32(3); be32(1); be32(3);
+  for (int k = 0; k < 9; ++k) be32(0);  // three vertices, float zero
+  be32(0xfffffffdu);                    // facet count -3
+  be32(0); be32(1); be32(2);
+  expect_input_error([&] { read_mesh(off("h.off", bin)); }, {"h.off", "facet 0 has vertex count -3"});
+}
+
 // --- fuzzer findings ----------------------------------------------------------
 // tests/data/regress/<target>-<what>: the input as the fuzz target saw it.
 // Each is replayed the way tests/fuzz/fuzz_<target>.cpp feeds it (file name,

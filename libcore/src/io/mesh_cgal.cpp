@@ -6,9 +6,10 @@
 #include <CGAL/Simple_cartesian.h>
 
 #include <cctype>
+#include <cmath>
+#include <cstring>
 #include <cstdint>
 #include <cstdlib>
-#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <limits>
@@ -38,190 +39,247 @@ void to_soup(const Mesh& m, std::vector<Point>& pts, Polygons& polys) {
   for (const auto& f : m.faces) polys.push_back({std::size_t(f[0]), std::size_t(f[1]), std::size_t(f[2])});
 }
 
-std::uintmax_t file_size(const std::string& path, const std::string& fn) {
-  std::error_code ec;
-  const std::uintmax_t n = std::filesystem::file_size(path, ec);
-  if (ec) throw IoError(fn + ": " + quote(path) + ": cannot determine the file size: " + ec.message());
-  return n;
-}
+// CGAL 5.5's OFF reader (File_header_OFF, File_scanner_OFF, IO/OFF.h) trusts
+// the file in several places, each found by fuzz_off and kept in
+// tests/data/regress/off-*:
+//  * it resizes its arrays to the header's counts before reading any data, and
+//    converts an edge-count estimate from them to int unchecked;
+//  * it converts each facet's vertex count and indices from double to
+//    std::size_t unchecked, and resizes the facet to that count;
+//  * with colours (C...OFF) it computes the number of colour values of a record
+//    as an unsigned difference and then indexes the record's numbers with it
+//    (an empty record, two values, or a record without colour after one with
+//    colour read past the end), converts a colour index to int and indexes a
+//    149-entry colour map with it, and converts colour values to unsigned char,
+//    all unchecked;
+//  * with texture coordinates but no colours (STOFF) it indexes the record
+//    from an offset it never set.
+// OffCheck walks the file as CGAL's scanner does (the same keyword, word,
+// number and record rules) and refuses any of these with a message naming the
+// record, before CGAL reads it. What CGAL itself reports cleanly is left to it.
+class OffCheck {
+ public:
+  explicit OffCheck(const std::string& path) : path_(path) {
+    std::ifstream in(path, std::ios::binary);
+    text_.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
 
-// CGAL's OFF reader resizes its arrays to the header's counts before reading
-// any data: check them against the file size first. Handles the common header
-// forms ([ST][C][N][4][n]OFF [BINARY], comments); anything else is left to CGAL.
-void check_off_counts(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::string text(4096, '\0');
-  in.read(&text[0], std::streamsize(text.size()));
-  text.resize(std::size_t(in.gcount()));
-  std::istringstream is(text);
-  std::vector<std::string> words;
-  std::string line;
-  while (words.size() < 6 && std::getline(is, line)) {
-    const auto hash = line.find('#');
-    if (hash != std::string::npos) line.erase(hash);
-    std::istringstream ls(line);
-    std::string w;
-    while (ls >> w) words.push_back(w);
-  }
-  if (words.empty()) return;
-  const std::string& key = words[0];
-  if (key.size() < 3 || key.compare(key.size() - 3, 3, "OFF") != 0) return;
-  std::size_t i = 1;
-  const bool binary = i < words.size() && words[i] == "BINARY";
-  if (binary) ++i;
-  if (key.find('n') != std::string::npos) ++i;  // nOFF: dimension first
-  if (i + 1 >= words.size()) return;
-  std::uint64_t nv = 0, nf = 0;
-  try {
-    const long long v = std::stoll(words[i]), f = std::stoll(words[i + 1]);
-    if (v < 0 || f < 0) return;  // CGAL reports these
-    nv = std::uint64_t(v);
-    nf = std::uint64_t(f);
-  } catch (const std::exception&) {
-    return;
-  }
-  // Smallest records: ASCII "0 0 0\n" and "0\n"; binary 3 floats and one int.
-  const std::uint64_t vb = binary ? 12 : 6, fb = binary ? 4 : 2;
-  const std::uint64_t size = file_size(path, "read_off");
-  if (nv > size / vb || nf > size / fb || nv * vb + nf * fb > size)
-    throw InputError("read_off: " + quote(path) + ": the header declares " + std::to_string(nv) + " vertices and " +
-                     std::to_string(nf) + " faces, more than a file of " + std::to_string(size) +
-                     " bytes can hold (truncated file or bad counts?)");
-}
-
-// CGAL's ASCII facet scanner converts each facet's vertex count from double
-// to std::size_t unchecked, undefined for a count <= -1, NaN or beyond 2^64
-// (found by fuzz_off; tests/data/regress/off-negative-facet-size*). Walk a
-// plain ASCII "OFF" file the way CGAL's scanner does (the counts as tokens,
-// then one record per line after skipping white space and # comments, the
-// first vertex record starting right after the counts) and check the first
-// number of every facet record first. Other variants (COFF, NOFF, BINARY, ...)
-// are left to CGAL.
-void check_off_facet_counts(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  std::size_t pos = 0;
-  const auto skip_space_and_comments = [&] {
-    for (;;) {
-      while (pos < text.size() && std::isspace(static_cast<unsigned char>(text[pos]))) ++pos;
-      if (pos < text.size() && text[pos] == '#') {
-        while (pos < text.size() && text[pos] != '\n') ++pos;
-        continue;
-      }
-      return;
-    }
-  };
-  std::string head[4];
-  for (int i = 0; i < 4; ++i) {
+  void run() {
     skip_space_and_comments();
-    const std::size_t b = pos;
-    if (i == 0) {
-      // The keyword as CGAL reads it: its first character, then letters and
-      // digits; the character that ends it is consumed ("OFF\x0f4 4 0" is
-      // keyword OFF with 4 vertices; fuzz_off, tests/data/regress/off-keyword-index).
-      if (pos < text.size()) ++pos;
-      while (pos < text.size() && std::isalnum(static_cast<unsigned char>(text[pos]))) ++pos;
-      head[0] = text.substr(b, pos - b);
-      if (pos < text.size()) ++pos;
-      continue;
-    }
-    const bool word = i == 1 && pos < text.size() && !std::isdigit(static_cast<unsigned char>(text[pos]));
-    if (word) {
-      // CGAL reads a word after the keyword the same way: its first
-      // character, then letters and digits ("BINARY\0..." is BINARY; fuzz_off,
-      // tests/data/regress/off-binary-nul).
-      ++pos;
-      while (pos < text.size() && std::isalnum(static_cast<unsigned char>(text[pos]))) ++pos;
-    } else {
-      while (pos < text.size() && !std::isspace(static_cast<unsigned char>(text[pos])) && text[pos] != '#') ++pos;
-    }
-    head[i] = text.substr(b, pos - b);
-    const std::string& key = head[0];
-    const bool off_family = key.size() >= 3 && key.compare(key.size() - 3, 3, "OFF") == 0;
-    if (word && off_family && head[1] == "BINARY") {
-      // Binary counts: three big-endian int32 after the BINARY line. CGAL
-      // casts an estimate from them to int unchecked (fuzz_off,
-      // tests/data/regress/off-binary-huge-counts): check them against the size.
-      while (pos < text.size() && text[pos] != '\n') ++pos;
-      ++pos;
-      if (pos + 12 > text.size()) return;  // truncated: CGAL reports it
-      std::int64_t c[3];
-      for (int k = 0; k < 3; ++k) {
-        const auto* u = reinterpret_cast<const unsigned char*>(text.data() + pos + 4 * k);
-        c[k] = std::int32_t(std::uint32_t(u[0]) << 24 | std::uint32_t(u[1]) << 16 | std::uint32_t(u[2]) << 8 | u[3]);
-      }
-      const std::int64_t size = std::int64_t(text.size());
-      if (c[0] < 0 || c[1] < 0 || c[2] < 0 || c[0] > size / 12 || c[1] > size / 4 || c[2] > size)
-        throw InputError("read_off: " + quote(path) + ": the binary header declares " + std::to_string(c[0]) +
-                         " vertices, " + std::to_string(c[1]) + " faces and " + std::to_string(c[2]) +
-                         " edges, impossible in a file of " + std::to_string(size) + " bytes");
-      return;
-    }
-  }
-  // OFF and its variants with per-line records and no dimension line (COFF,
-  // NOFF, STOFF, 4OFF, ...); nOFF is left to CGAL.
-  const std::string& kw = head[0];
-  if (kw.size() < 3 || kw.compare(kw.size() - 3, 3, "OFF") != 0 || kw.find('n') != std::string::npos) return;
-  long long nv = 0, nf = 0;
-  try {
-    nv = std::stoll(head[1]);
-    nf = std::stoll(head[2]);
-  } catch (const std::exception&) {
-    return;
-  }
-  if (nv < 0 || nf < 0) return;
-  // CGAL reserves its vectors by these counts (fuzz_off: 66,666,664 faces
-  // after "OFF\x0f" in a 41-byte file, tests/data/regress/off-keyword-counts).
-  if (nv > std::int64_t(text.size()) || nf > std::int64_t(text.size()))
-    throw InputError("read_off: " + quote(path) + ": the header declares " + std::to_string(nv) + " vertices and " +
-                     std::to_string(nf) + " faces, more than a file of " + std::to_string(text.size()) +
-                     " bytes can hold (truncated file or bad counts?)");
-  const auto next_record = [&](std::string& out) {
-    skip_space_and_comments();
-    if (pos >= text.size()) return false;
-    std::size_t e = text.find('\n', pos);
-    if (e == std::string::npos) e = text.size();
-    out = text.substr(pos, e - pos);
-    pos = e;
-    const auto hash = out.find('#');
-    if (hash != std::string::npos) out.erase(hash);
-    return true;
-  };
-  std::string rec;
-  for (long long k = 0; k < nv; ++k)
-    if (!next_record(rec)) return;  // truncated: CGAL reports it
-  for (long long f = 0; f < nf; ++f) {
-    if (!next_record(rec)) return;
-    // CGAL splits the record by reading doubles from it ("1-2" is 1 and -2),
-    // converts the first to the vertex count and resizes the facet with it,
-    // then converts each index, all from double to std::size_t unchecked:
-    // undefined for values <= -1, NaN or beyond 2^64, and a count beyond the
-    // file's size exhausts memory (fuzz_off, tests/data/regress/off-*).
-    const auto num = [](double v) {
-      std::ostringstream o;
-      o << v;
-      return o.str();
+    const std::string kw = word();
+    // [ST][C][N][4][n]OFF, in this order, as CGAL parses the keyword.
+    std::size_t j = 0;
+    const auto flag = [&](const char* f) {
+      const std::size_t n = std::strlen(f);
+      if (kw.compare(j, n, f) != 0) return false;
+      j += n;
+      return true;
     };
-    std::istringstream ls(rec);
-    double c = 0;
-    if (!(ls >> c)) continue;  // CGAL reports the malformed record
-    const double limit = double(text.size());
-    if (!(c > -1 && c <= limit))
-      throw InputError("read_off: " + quote(path) + ": facet " + std::to_string(f) + " has vertex count " +
-                       num(c) + "; expected an integer >= 3, at most the file's size");
-    double idx = 0;
-    for (long long k = 0; k < static_cast<long long>(c) && ls >> idx; ++k)
-      if (!(idx > -1 && idx < 1e18))
-        throw InputError("read_off: " + quote(path) + ": facet " + std::to_string(f) + " has vertex index " +
-                         num(idx) + "; expected an integer in [0, " + std::to_string(nv) + ")");
+    st_ = flag("ST");
+    c_ = flag("C");
+    n_ = flag("N");
+    h_ = flag("4");
+    const bool dim = flag("n");
+    if (kw.compare(j, std::string::npos, "OFF") != 0) return;  // not OFF (or SKEL): CGAL reports it
+    skip_space_and_comments();
+    if (pos_ < text_.size() && !std::isdigit(static_cast<unsigned char>(text_[pos_]))) {
+      if (word() != "BINARY") return;  // CGAL reports it
+      if (pos_ > 0 && text_[pos_ - 1] != '\n') {
+        while (pos_ < text_.size() && text_[pos_] != '\n') ++pos_;
+        ++pos_;
+      }
+      binary(dim);
+      return;
+    }
+    ascii(dim);
   }
-}
+
+ private:
+  [[noreturn]] void fail(const std::string& what) const {
+    throw InputError("read_off: " + quote(path_) + ": " + what);
+  }
+  static std::string num(double v) {
+    std::ostringstream o;
+    o << v;
+    return o.str();
+  }
+  std::size_t size() const { return text_.size(); }
+
+  void skip_space_and_comments() {
+    for (;;) {
+      while (pos_ < size() && std::isspace(static_cast<unsigned char>(text_[pos_]))) ++pos_;
+      if (pos_ >= size() || text_[pos_] != '#') return;
+      while (pos_ < size() && text_[pos_] != '\n') ++pos_;
+    }
+  }
+  // A word as CGAL reads one: its first character, then letters and digits;
+  // the character that ends it is consumed ("OFF\x0f4 4 0" is OFF and 4).
+  std::string word() {
+    const std::size_t b = pos_;
+    if (pos_ < size()) ++pos_;
+    while (pos_ < size() && std::isalnum(static_cast<unsigned char>(text_[pos_]))) ++pos_;
+    const std::string w = text_.substr(b, pos_ - b);
+    if (pos_ < size()) ++pos_;
+    return w;
+  }
+  // `in >> int`: white space, a sign, digits. False where CGAL's read fails.
+  bool integer(long long& v) {
+    while (pos_ < size() && std::isspace(static_cast<unsigned char>(text_[pos_]))) ++pos_;
+    std::size_t e = pos_;
+    if (e < size() && (text_[e] == '+' || text_[e] == '-')) ++e;
+    const std::size_t digits = e;
+    while (e < size() && std::isdigit(static_cast<unsigned char>(text_[e]))) ++e;
+    if (e == digits || e - digits > 12) return false;
+    v = std::stoll(text_.substr(pos_, e - pos_));
+    pos_ = e;
+    return v >= std::numeric_limits<int>::min() && v <= std::numeric_limits<int>::max();
+  }
+  // The numbers of the next record, as CGAL's scanner reads them: white space
+  // and # comment lines skipped, one line, cut at '#', then doubles the way
+  // CGAL's IO::iformat reads them (a sign, then the longest run of digits,
+  // '.', 'e', 'E', '+' and '-', converted by sscanf: "1-2" is 1) until one
+  // fails. False at the end of the file.
+  bool record(std::vector<double>& out) {
+    out.clear();
+    skip_space_and_comments();
+    if (pos_ >= size()) return false;
+    std::size_t e = text_.find('\n', pos_);
+    if (e == std::string::npos) e = size();
+    std::size_t end = text_.find('#', pos_);
+    if (end > e) end = e;
+    std::size_t p = pos_;
+    pos_ = e;
+    std::string buf;
+    for (;;) {
+      while (p < end && std::isspace(static_cast<unsigned char>(text_[p]))) ++p;
+      if (p >= end) return true;
+      buf.clear();
+      if (text_[p] == '-') buf += '-';
+      if (text_[p] == '-' || text_[p] == '+') ++p;
+      while (p < end && (std::isdigit(static_cast<unsigned char>(text_[p])) || std::strchr(".eE+-", text_[p]))) buf += text_[p++];
+      char* stop = nullptr;
+      const double d = std::strtod(buf.c_str(), &stop);
+      if (stop == buf.c_str()) return true;
+      out.push_back(d);
+    }
+  }
+
+  // Colour values c0.. of a record, as CGAL's scan_color converts them.
+  void check_colour(const std::vector<double>& v, std::size_t first, std::size_t count, const std::string& what) const {
+    if (count == 1) {
+      if (!(v[first] > -1 && v[first] < 2147483648.0))
+        fail(what + " has colour-map index " + num(v[first]) + "; expected an integer >= 0");
+      return;
+    }
+    const bool integral = std::floor(v[first]) == v[first] && std::floor(v[first + 1]) == v[first + 1] &&
+                          std::floor(v[first + 2]) == v[first + 2];
+    for (std::size_t k = first; k < first + 3; ++k) {
+      const double byte = integral ? v[k] : v[k] * 255;
+      if (!(byte > -1 && byte < 256))
+        fail(what + " has colour value " + num(v[k]) + "; expected an integer in [0, 255] or a number in [0, 1]");
+    }
+  }
+  // A record's colour count: 0, 1, 3 or 4, and never 0 again once a record
+  // had colour (CGAL then reads a colour from every record).
+  void colour_count(long long count, bool& seen, const std::string& what) const {
+    if (count < 0 || count == 2 || count > 4 || (seen && count == 0))
+      fail(what + " has " + std::to_string(count < 0 ? 0 : count) +
+           " colour values; expected 0, 1, 3 or 4" + (seen ? " (and not 0: earlier records have colour)" : ""));
+    seen = seen || count > 0;
+  }
+
+  void counts_fit(long long nv, long long nf, std::uint64_t vb, std::uint64_t fb) const {
+    // Smallest records: ASCII "0 0 0\n" and "0\n"; binary 3 floats and one int.
+    if (std::uint64_t(nv) > size() / vb || std::uint64_t(nf) > size() / fb ||
+        std::uint64_t(nv) * vb + std::uint64_t(nf) * fb > size())
+      fail("the header declares " + std::to_string(nv) + " vertices and " + std::to_string(nf) +
+           " faces, more than a file of " + std::to_string(size()) + " bytes can hold (truncated file or bad counts?)");
+  }
+
+  void ascii(bool dim) {
+    long long d = 0, nv = 0, nf = 0, ne = 0;
+    if (dim && !integer(d)) return;
+    if (!integer(nv) || !integer(nf) || !integer(ne) || nv < 0 || nf < 0) return;  // CGAL reports these
+    counts_fit(nv, nf, 6, 2);
+    if (st_ && !c_)
+      fail("texture coordinates without colours (" + std::string(h_ ? "4" : "") +
+           "STOFF) are not read: CGAL's reader would index them from an unset offset; expected OFF, COFF, NOFF, "
+           "CNOFF or STCOFF");
+    const long long hom = h_ ? 1 : 0;
+    const long long need = 3 + hom + (n_ ? 3 + hom : 0) + (st_ ? 2 + hom : 0);
+    const std::size_t first_colour = std::size_t(3 + hom + (n_ ? 3 + hom : 0));
+    std::vector<double> v;
+    bool seen = false;
+    for (long long k = 0; k < nv; ++k) {
+      if (!record(v)) return;  // truncated: CGAL reports it
+      if (!c_) continue;
+      const std::string what = "vertex " + std::to_string(k);
+      const long long count = static_cast<long long>(v.size()) - need;
+      if (count < 0)
+        fail(what + " has " + std::to_string(v.size()) + " numbers; expected at least " + std::to_string(need));
+      colour_count(count, seen, what);
+      if (count > 0) check_colour(v, first_colour, std::size_t(count), what);
+    }
+    seen = false;
+    for (long long f = 0; f < nf; ++f) {
+      if (!record(v)) return;
+      if (v.empty()) continue;  // CGAL reports the malformed record
+      const std::string what = "facet " + std::to_string(f);
+      if (!(v[0] > -1 && v[0] <= double(size())))
+        fail(what + " has vertex count " + num(v[0]) + "; expected an integer >= 3, at most the file's size");
+      const std::size_t count = static_cast<std::size_t>(v[0]);
+      for (std::size_t k = 1; k <= count && k < v.size(); ++k)
+        if (!(v[k] > -1 && v[k] < 1e18))
+          fail(what + " has vertex index " + num(v[k]) + "; expected an integer in [0, " + std::to_string(nv) + ")");
+      if (!c_ || v.size() < count + 1) continue;  // a missing index: CGAL reports it
+      const std::size_t colour = v.size() - count - 1;
+      colour_count(static_cast<long long>(colour), seen, what);
+      if (colour > 0) check_colour(v, count + 1, colour, what);
+    }
+  }
+
+  // Binary OFF: big-endian int32 counts after the BINARY line, float vertex
+  // records (CGAL reads no colours from them), then per facet an int32 count
+  // and that many int32 indices. CGAL converts a negative count to a huge
+  // std::size_t and resizes the facet to it.
+  void binary(bool dim) {
+    const auto int32 = [&](std::int64_t& out) {
+      if (pos_ + 4 > size()) return false;
+      const auto* u = reinterpret_cast<const unsigned char*>(text_.data() + pos_);
+      out = std::int32_t(std::uint32_t(u[0]) << 24 | std::uint32_t(u[1]) << 16 | std::uint32_t(u[2]) << 8 | u[3]);
+      pos_ += 4;
+      return true;
+    };
+    std::int64_t d = 0, nv = 0, nf = 0, ne = 0;
+    if ((dim && !int32(d)) || !int32(nv) || !int32(nf) || !int32(ne)) return;  // truncated: CGAL reports it
+    const std::int64_t n = std::int64_t(size());
+    if (nv < 0 || nf < 0 || ne < 0 || nv > n / 12 || nf > n / 4 || ne > n)
+      fail("the binary header declares " + std::to_string(nv) + " vertices, " + std::to_string(nf) + " faces and " +
+           std::to_string(ne) + " edges, impossible in a file of " + std::to_string(n) + " bytes");
+    const std::int64_t hom = h_ ? 1 : 0;
+    const std::int64_t floats = 3 + hom + (n_ ? 3 + hom : 0) + (st_ ? 2 + hom : 0);
+    if (std::uint64_t(nv) * std::uint64_t(4 * floats) > size() - pos_) return;  // truncated: CGAL reports it
+    pos_ += std::size_t(nv * 4 * floats);
+    for (std::int64_t f = 0; f < nf; ++f) {
+      std::int64_t count = 0;
+      if (!int32(count)) return;
+      if (count < 0 || count > std::int64_t(size() - pos_) / 4)
+        fail("facet " + std::to_string(f) + " has vertex count " + std::to_string(count) +
+             "; expected an integer >= 3, at most the indices left in the file");
+      pos_ += std::size_t(count) * 4;
+    }
+  }
+
+  std::string path_;
+  std::string text_;
+  std::size_t pos_ = 0;
+  bool st_ = false, c_ = false, n_ = false, h_ = false;
+};
 
 }  // namespace
 
 Mesh read_off(const std::string& path) {
-  check_off_counts(path);
-  check_off_facet_counts(path);
+  OffCheck(path).run();
   std::ifstream in(path, std::ios::binary);
   if (!in) throw IoError("read_off: " + quote(path) + ": cannot open");
   std::vector<Point> pts;
