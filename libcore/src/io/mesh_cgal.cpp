@@ -134,6 +134,9 @@ class OffCheck {
     pos_ = e;
     return v >= std::numeric_limits<int>::min() && v <= std::numeric_limits<int>::max();
   }
+  static bool number_char(char c) {
+    return std::isdigit(static_cast<unsigned char>(c)) || c == '.' || c == 'e' || c == 'E' || c == '+' || c == '-';
+  }
   // The numbers of the next record, as CGAL's scanner reads them: white space
   // and # comment lines skipped, one line, cut at '#', then doubles the way
   // CGAL's IO::iformat reads them (a sign, then the longest run of digits,
@@ -156,7 +159,7 @@ class OffCheck {
       buf.clear();
       if (text_[p] == '-') buf += '-';
       if (text_[p] == '-' || text_[p] == '+') ++p;
-      while (p < end && (std::isdigit(static_cast<unsigned char>(text_[p])) || std::strchr(".eE+-", text_[p]))) buf += text_[p++];
+      while (p < end && number_char(text_[p])) buf += text_[p++];
       char* stop = nullptr;
       const double d = std::strtod(buf.c_str(), &stop);
       if (stop == buf.c_str()) return true;
