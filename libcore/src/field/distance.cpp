@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "pm/base/error.h"
+#include "pm/base/parallel.h"
 
 namespace pm {
 namespace {
@@ -120,7 +121,7 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
     }
     return false;
   };
-  tbb::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
+  pm::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
     std::size_t cnt = 0;
     for (std::size_t j = 0; j < ny; ++j)
       for (std::size_t i = 0; i < nx; ++i)
@@ -151,7 +152,7 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
   std::vector<std::array<float, 3>> foot(nband);
   std::vector<std::array<float, 3>> normal(nband, {0.f, 0.f, 0.f});  // unit, or 0: a point
   std::vector<std::size_t> bnode(nband);
-  tbb::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
+  pm::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
     std::int32_t id = std::int32_t(per_slice[k]);
     for (std::size_t j = 0; j < ny; ++j)
       for (std::size_t i = 0; i < nx; ++i) {
@@ -231,7 +232,7 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
   std::vector<std::int32_t> site(n);
   const std::size_t counts[3] = {nx, ny, nz};
   // Lines along x and y, slice by slice (a slice is contiguous).
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nz), [&](const tbb::blocked_range<std::size_t>& r) {
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, nz), [&](const tbb::blocked_range<std::size_t>& r) {
     Line L;
     L.resize(std::max(nx, ny));
     for (std::size_t k = r.begin(); k != r.end(); ++k) {
@@ -263,7 +264,7 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
   // Lines along z, in blocks of kBlock neighbouring lines so every gather and
   // scatter touches whole cache lines.
   constexpr std::size_t kBlock = 16;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, ny), [&](const tbb::blocked_range<std::size_t>& r) {
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, ny), [&](const tbb::blocked_range<std::size_t>& r) {
     std::vector<Line> lines(kBlock);
     for (Line& L : lines) L.resize(nz);
     for (std::size_t j = r.begin(); j != r.end(); ++j)
@@ -297,7 +298,7 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
     bool below;  // the band node's side of the level set
   };
   std::vector<Disc> disc(nband);
-  tbb::parallel_for(std::size_t(0), nband, [&](std::size_t b) {
+  pm::parallel_for(std::size_t(0), nband, [&](std::size_t b) {
     const std::size_t q = bnode[b];
     const double qi[3] = {double(q % nx), double((q / nx) % ny), double(q / nxy)};
     for (int a = 0; a < 3; ++a) {
@@ -333,7 +334,7 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
   auto disc_d2 = [&](const double x[3], std::int32_t b) { return disc_d2_below(x, b, kInf); };
   // Neighbouring nodes mostly share their nearest band node, so each row
   // keeps the candidate discs of the last (band node, side) pair it used.
-  tbb::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
+  pm::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
     std::int32_t cand[27];
     int ncand = 0;
     std::size_t cached_site = std::size_t(-1);
@@ -393,7 +394,7 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
       site[c] = b;
     }
   };
-  tbb::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
+  pm::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
     for (std::size_t j = 0; j < ny; ++j) {
       const std::size_t base = nx * j + nxy * k;
       double x[3] = {0, double(j) * h[1], double(k) * h[2]};
@@ -410,7 +411,7 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
   for (int axis = 1; axis < 3; ++axis) {
     const std::size_t len = counts[axis], st = stride[axis];
     const int other = axis == 1 ? 2 : 1;  // the line's fixed coordinate besides x
-    tbb::parallel_for(std::size_t(0), counts[other], [&](std::size_t u) {
+    pm::parallel_for(std::size_t(0), counts[other], [&](std::size_t u) {
       const std::size_t base = u * stride[other];
       double x[3];
       x[other] = double(u) * h[other];
@@ -427,7 +428,7 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
   }
 
   std::vector<float> out(n);
-  tbb::parallel_for(std::size_t(0), n, [&](std::size_t c) {
+  pm::parallel_for(std::size_t(0), n, [&](std::size_t c) {
     const float d = std::sqrt(sq[c]);
     out[c] = below(c) ? -d : d;
   });

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "pm/base/error.h"
+#include "pm/base/parallel.h"
 #include "pm/field/kernels.h"
 #include "pm/ops/labels.h"
 
@@ -29,7 +30,7 @@ std::vector<float> resample_nodes(const Volume& v, KernelType kernel) {
   const std::size_t stride[3] = {1, d.nx, d.nx * d.ny};
   for (int axis = 0; axis < 3; ++axis) {
     const std::size_t n = d[axis], s = stride[axis];
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, d.nz), [&](const tbb::blocked_range<std::size_t>& zr) {
+    pm::parallel_for(tbb::blocked_range<std::size_t>(0, d.nz), [&](const tbb::blocked_range<std::size_t>& zr) {
       for (std::size_t k = zr.begin(); k != zr.end(); ++k)
         for (std::size_t j = 0; j < d.ny; ++j)
           for (std::size_t i = 0; i < d.nx; ++i) {
@@ -134,7 +135,7 @@ McInitResult mc_seeds(const Volume& v, const McInitParams& p) {
   };
   std::vector<std::vector<Seed>> slices(d.nz);
   const std::size_t cx = d.nx - 1, cy = d.ny - 1;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, d.nz), [&](const tbb::blocked_range<std::size_t>& zr) {
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, d.nz), [&](const tbb::blocked_range<std::size_t>& zr) {
     for (std::size_t k = zr.begin(); k != zr.end(); ++k)
       for (std::size_t j = 0; j < d.ny; ++j)
         for (std::size_t i = 0; i < d.nx; ++i) {
@@ -171,7 +172,7 @@ McInitResult mc_seeds(const Volume& v, const McInitParams& p) {
   std::iota(uf.parent.begin(), uf.parent.end(), 0u);
   std::vector<std::uint8_t> crossing(ncells, 0);
   auto corner = [&](std::size_t i, std::size_t j, std::size_t k) { return inside(i + sy * j + sz * k); };
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, d.nz - 1), [&](const tbb::blocked_range<std::size_t>& zr) {
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, d.nz - 1), [&](const tbb::blocked_range<std::size_t>& zr) {
     for (std::size_t k = zr.begin(); k != zr.end(); ++k)
       for (std::size_t j = 0; j < cy; ++j)
         for (std::size_t i = 0; i < cx; ++i) {
@@ -238,7 +239,7 @@ McInitResult mc_seeds(const Volume& v, const McInitParams& p) {
   comp_out.resize(keep.size());
   std::vector<std::uint8_t> on_surface(keep.size(), 0);
   std::vector<double> resid(keep.size(), 0);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, keep.size()), [&](const tbb::blocked_range<std::size_t>& r) {
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, keep.size()), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t q = r.begin(); q != r.end(); ++q) {
       const std::size_t s = keep[q];
       const Vec3 x0 = g.index_to_world(ijk[s]);
@@ -317,7 +318,7 @@ JunctionResult junction_seeds(const Volume& labels, const JunctionParams& p) {
   };
   const std::size_t sy = d.nx, sz = d.nx * d.ny;
   std::vector<std::vector<JSeed>> slices(d.nz);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, d.nz), [&](const tbb::blocked_range<std::size_t>& zr) {
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, d.nz), [&](const tbb::blocked_range<std::size_t>& zr) {
     for (std::size_t k = zr.begin(); k != zr.end(); ++k) {
       auto& out = slices[k];
       for (std::size_t j = 0; j < d.ny; ++j)

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "pm/base/error.h"
+#include "pm/base/parallel.h"
 #include "pm/field/volume_field.h"
 
 namespace pm {
@@ -169,7 +170,7 @@ MedialAxisResult medial_axis(const Volume& sdf, const MedialAxisParams& p) {
   std::vector<std::array<float, 3>> off(N);
   std::vector<std::uint8_t> ok(N, 0);
   std::vector<std::size_t> tested(nz, 0);
-  tbb::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
+  pm::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
     for (std::size_t j = 0; j < ny; ++j)
       for (std::size_t i = 0; i < nx; ++i) {
         const std::size_t c = i + sy * j + sz * k;
@@ -208,7 +209,7 @@ MedialAxisResult medial_axis(const Volume& sdf, const MedialAxisParams& p) {
   // Pass 2: nodes without a foot take the closest of their neighbours' feet
   // that agrees with their own distance.
   std::vector<std::uint8_t> ok2 = ok;
-  tbb::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
+  pm::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
     for (std::size_t j = 0; j < ny; ++j)
       for (std::size_t i = 0; i < nx; ++i) {
         const std::size_t c = i + sy * j + sz * k;
@@ -243,7 +244,7 @@ MedialAxisResult medial_axis(const Volume& sdf, const MedialAxisParams& p) {
   // of q2's cell, and the characteristic there is that corner's (the surface
   // normal at its foot).
   std::vector<std::vector<MaPoint>> per(nz);
-  tbb::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
+  pm::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
     for (std::size_t j = 0; j < ny; ++j)
       for (std::size_t i = 0; i < nx; ++i) {
         const std::size_t c = i + sy * j + sz * k;

@@ -12,6 +12,7 @@
 #include <unordered_map>
 
 #include "pm/base/error.h"
+#include "pm/base/parallel.h"
 #include "pm/ops/labels.h"
 
 namespace pm {
@@ -138,7 +139,7 @@ void basic_pass(Region& r, std::vector<std::uint8_t>& rx, std::vector<std::uint8
   const std::uint8_t* __restrict a = r.a.data();
   const std::uint8_t* rw = rows.data();
   auto op = [](std::uint8_t p, std::uint8_t q) -> std::uint8_t { return Dilate ? (p | q) : (p & q); };
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(1, nz - 1), [&](const tbb::blocked_range<std::size_t>& zr) {
+  pm::parallel_for(tbb::blocked_range<std::size_t>(1, nz - 1), [&](const tbb::blocked_range<std::size_t>& zr) {
     for (std::size_t k = zr.begin(); k != zr.end(); ++k)
       for (std::size_t j = 1; j + 1 < ny; ++j) {
         std::uint8_t* __restrict o = rx.data() + j * sy + k * sz;
@@ -151,7 +152,7 @@ void basic_pass(Region& r, std::vector<std::uint8_t>& rx, std::vector<std::uint8
       }
   });
   const std::uint8_t* __restrict x = rx.data();
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(1, nz - 1), [&](const tbb::blocked_range<std::size_t>& zr) {
+  pm::parallel_for(tbb::blocked_range<std::size_t>(1, nz - 1), [&](const tbb::blocked_range<std::size_t>& zr) {
     for (std::size_t k = zr.begin(); k != zr.end(); ++k)
       for (std::size_t j = 1; j + 1 < ny; ++j) {
         const std::size_t b = j * sy + k * sz;
@@ -286,7 +287,7 @@ void for_region_in_volume(const Region& r, const Dims& d, F&& f) {
   const long ylo = std::max(0L, r.y0), yhi = std::min(long(d.ny), r.y0 + long(r.ny));
   const long xlo = std::max(0L, r.x0), xhi = std::min(long(d.nx), r.x0 + long(r.nx));
   if (zlo >= zhi || ylo >= yhi || xlo >= xhi) return;
-  tbb::parallel_for(tbb::blocked_range<long>(zlo, zhi), [&](const tbb::blocked_range<long>& zr) {
+  pm::parallel_for(tbb::blocked_range<long>(zlo, zhi), [&](const tbb::blocked_range<long>& zr) {
     for (long k = zr.begin(); k != zr.end(); ++k)
       for (long j = ylo; j < yhi; ++j)
         for (long i = xlo; i < xhi; ++i)
@@ -336,7 +337,7 @@ Indexed index_labels(const Volume& v, const std::string& what) {
   std::vector<std::uint16_t> remap(x.values.size());
   for (std::size_t a = 0; a < x.values.size(); ++a)
     remap[a] = std::uint16_t(std::lower_bound(sorted.begin(), sorted.end(), x.values[a]) - sorted.begin());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& r) {
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t i = r.begin(); i != r.end(); ++i) x.idx[i] = remap[x.idx[i]];
   });
   x.values = std::move(sorted);
@@ -374,7 +375,7 @@ std::size_t vote_indices(Indexed& x, const std::string& what) {
   while (!todo.empty()) {
     ++rounds;
     decision.assign(todo.size(), kEmpty);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, todo.size()), [&](const tbb::blocked_range<std::size_t>& r) {
+    pm::parallel_for(tbb::blocked_range<std::size_t>(0, todo.size()), [&](const tbb::blocked_range<std::size_t>& r) {
       for (std::size_t t = r.begin(); t != r.end(); ++t) {
         const std::size_t v = todo[t];
         const std::size_t i = v % d.nx, j = (v / d.nx) % d.ny, k = v / (d.nx * d.ny);
@@ -435,7 +436,7 @@ Dims downsampled_dims(const Dims& d, int k) {
 template <class F>
 void for_blocks(const Dims& in, const Dims& out, int k, F&& f) {
   const std::size_t kk = std::size_t(k);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, out.nz), [&](const tbb::blocked_range<std::size_t>& zr) {
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, out.nz), [&](const tbb::blocked_range<std::size_t>& zr) {
     std::vector<std::size_t> block;
     block.reserve(kk * kk * kk);
     for (std::size_t oz = zr.begin(); oz != zr.end(); ++oz)

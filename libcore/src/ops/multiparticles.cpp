@@ -15,6 +15,7 @@
 
 #include "pm/base/error.h"
 #include "pm/base/log.h"
+#include "pm/base/parallel.h"
 #include "pm/ops/mcinit.h"
 
 // Binning: the same invariant as particles.cpp. Bins are rebuilt before each
@@ -342,7 +343,7 @@ void MultiEngine::rebin() {
 
 template <class Body>
 void MultiEngine::for_each_bin(Body&& body) {
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, bin_key_.size(), 1),
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, bin_key_.size(), 1),
                     [&](const tbb::blocked_range<std::size_t>& r) {
                       std::vector<Cand>& buf = tls_.local();
                       for (std::size_t b = r.begin(); b != r.end(); ++b) body(b, buf);
@@ -353,7 +354,7 @@ double MultiEngine::sweep(double& energy) {
   for (int colour = 0; colour < kColours; ++colour) {
     const std::uint32_t b0 = colour_start_[colour], b1 = colour_start_[colour + 1];
     if (b0 == b1) continue;
-    tbb::parallel_for(tbb::blocked_range<std::uint32_t>(b0, b1, 1), [&](const tbb::blocked_range<std::uint32_t>& r) {
+    pm::parallel_for(tbb::blocked_range<std::uint32_t>(b0, b1, 1), [&](const tbb::blocked_range<std::uint32_t>& r) {
       std::vector<Cand>& buf = tls_.local();
       std::uint64_t evals = 0;
       for (std::uint32_t k = r.begin(); k != r.end(); ++k) {
@@ -395,7 +396,7 @@ double MultiEngine::measure() {
 std::vector<char> MultiEngine::project_candidates(std::vector<Candidate>& cands, int steps,
                                                   const std::vector<double>& max_step) {
   std::vector<char> ok(cands.size(), 0);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cands.size(), 16),
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, cands.size(), 16),
                     [&](const tbb::blocked_range<std::size_t>& r) {
                       std::uint64_t evals = 0;
                       for (std::size_t i = r.begin(); i != r.end(); ++i) {
@@ -847,7 +848,7 @@ std::vector<JunctionSeed> junction_seeds_from_materials(const MaterialSet& m, do
   d.nz = n[2];
   Volume v(VoxelType::i32, d, Geometry::with_spacing(h, h, h, dom.lo));
   std::int32_t* data = v.data<std::int32_t>();
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, d.nz), [&](const tbb::blocked_range<std::size_t>& r) {
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, d.nz), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t k = r.begin(); k != r.end(); ++k)
       for (std::size_t j = 0; j < d.ny; ++j)
         for (std::size_t i = 0; i < d.nx; ++i) {

@@ -12,6 +12,7 @@
 
 #include "pm/base/error.h"
 #include "pm/base/log.h"
+#include "pm/base/parallel.h"
 
 // Binning invariant (why 3x3x3 bins are enough and why colours make it
 // race-free).
@@ -623,13 +624,13 @@ void Engine::build_lists() {
       if (!fill) nbr_start_[i + 1] = count;
     }
   };
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cell_key_.size(), 4),
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, cell_key_.size(), 4),
                     [&](const tbb::blocked_range<std::size_t>& r) {
                       for (std::size_t c = r.begin(); c != r.end(); ++c) scan(c, false);
                     });
   for (std::size_t i = 0; i < n; ++i) nbr_start_[i + 1] += nbr_start_[i];
   nbr_.resize(nbr_start_[n]);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cell_key_.size(), 4),
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, cell_key_.size(), 4),
                     [&](const tbb::blocked_range<std::size_t>& r) {
                       for (std::size_t c = r.begin(); c != r.end(); ++c) scan(c, true);
                     });
@@ -696,7 +697,7 @@ std::size_t Engine::refill_holes() {
   rebin();
   const std::size_t na = anchors_.size();
   std::vector<char> hole(na, 0);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, na, 256), [&](const tbb::blocked_range<std::size_t>& r) {
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, na, 256), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t k = r.begin(); k != r.end(); ++k) hole[k] = anchor_cover(anchors_[k], nullptr) < 0;
   });
   // Greedy in anchor order (deterministic): one new particle covers the
@@ -730,7 +731,7 @@ void Engine::keep_anchor_covers(std::vector<char>& del, std::size_t& ndel) const
   const std::size_t na = anchors_.size();
   // Anchors that are covered now but would lose every cover (parallel, pure reads).
   std::vector<char> risk(na, 0);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, na, 256), [&](const tbb::blocked_range<std::size_t>& r) {
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, na, 256), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t k = r.begin(); k != r.end(); ++k)
       risk[k] = anchor_cover(anchors_[k], nullptr) >= 0 && anchor_cover(anchors_[k], &del) < 0;
   });
@@ -745,7 +746,7 @@ void Engine::keep_anchor_covers(std::vector<char>& del, std::size_t& ndel) const
 
 template <class Body>
 void Engine::for_each_cell_parallel(Body&& body) {
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cell_key_.size(), 1),
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, cell_key_.size(), 1),
                     [&](const tbb::blocked_range<std::size_t>& r) {
                       std::vector<Cand>& buf = tls_.local();
                       for (std::size_t c = r.begin(); c != r.end(); ++c) body(c, buf);
@@ -770,7 +771,7 @@ double Engine::sweep(double& energy) {
       evals_ += count;
       continue;
     }
-    tbb::parallel_for(tbb::blocked_range<std::uint32_t>(b, e, 1), [&](const tbb::blocked_range<std::uint32_t>& r) {
+    pm::parallel_for(tbb::blocked_range<std::uint32_t>(b, e, 1), [&](const tbb::blocked_range<std::uint32_t>& r) {
       std::vector<Cand>& buf = tls_.local();
       std::uint64_t count = 0;
       for (std::uint32_t k = r.begin(); k != r.end(); ++k) {
@@ -815,7 +816,7 @@ void Engine::project_many(const std::vector<Vec3>& xs, std::vector<Vec3>& out, s
   out = xs;
   evals.assign(n, Eval{});
   ok.assign(n, 0);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 16), [&](const tbb::blocked_range<std::size_t>& r) {
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, n, 16), [&](const tbb::blocked_range<std::size_t>& r) {
     std::uint64_t count = 0;
     for (std::size_t i = r.begin(); i != r.end(); ++i) {
       Vec3 x = xs[i];
@@ -846,7 +847,7 @@ std::vector<Vec3> Engine::lattice_crossings(double step) {
     return lo + Vec3{double(i) * step, double(j) * step, double(k) * step};
   };
   std::vector<float> f(nx * ny * nz);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nz), [&](const tbb::blocked_range<std::size_t>& r) {
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, nz), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t k = r.begin(); k != r.end(); ++k)
       for (std::size_t j = 0; j < ny; ++j)
         for (std::size_t i = 0; i < nx; ++i) {
@@ -1168,7 +1169,7 @@ ParticleResult Engine::run(const std::vector<Vec3>& seeds) {
     res_.spacing[i] = q.spacing;
     nb += std::uint64_t(q.neighbours);
   }
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 64), [&](const tbb::blocked_range<std::size_t>& r) {
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, n, 64), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t i = r.begin(); i != r.end(); ++i) {
       Vec3 g;
       Mat3 h;

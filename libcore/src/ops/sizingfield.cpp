@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "pm/base/error.h"
+#include "pm/base/parallel.h"
 #include "pm/field/curvature.h"
 #include "pm/field/volume_field.h"
 #include "pm/ops/medialaxis.h"
@@ -169,7 +170,7 @@ SizingFieldResult sizing_field(const std::vector<SizingSurface>& surfaces, const
     const VolumeField field(surf.sdf, VolumeFieldParams::chapter5_mix());
     const std::vector<float> d = surf.sdf.to_float();
     const KdTree tree(surf.medial_axis);
-    tbb::parallel_for(std::size_t(0), n.nz, [&](std::size_t k) {
+    pm::parallel_for(std::size_t(0), n.nz, [&](std::size_t k) {
       std::size_t last = std::size_t(-1);  // the previous query's nearest point: an upper bound
       for (std::size_t j = 0; j < n.ny; ++j)
         for (std::size_t i = 0; i < n.nx; ++i) {

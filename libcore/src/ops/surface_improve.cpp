@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "pm/base/error.h"
+#include "pm/base/parallel.h"
 #include "pm/field/junctions.h"
 #include "pm/ops/meshstats.h"
 
@@ -243,7 +244,7 @@ class Improver {
     // area-weighted centroid of the 1-ring's triangles, projected onto F = iso.
     std::vector<Vec3> prop(nv);
     std::vector<char> ok(nv, 0);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nv, 256), [&](const tbb::blocked_range<std::size_t>& r) {
+    pm::parallel_for(tbb::blocked_range<std::size_t>(0, nv, 256), [&](const tbb::blocked_range<std::size_t>& r) {
       for (std::size_t v = r.begin(); v != r.end(); ++v) {
         if (start[v] == start[v + 1] || frozen_[v] >= 2) continue;
         std::array<int, 3> mats;
@@ -320,7 +321,7 @@ class Improver {
   void update_normals() {
     auto& V = m_.vertices;
     auto& N = m_.normals;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, V.size(), 512), [&](const tbb::blocked_range<std::size_t>& r) {
+    pm::parallel_for(tbb::blocked_range<std::size_t>(0, V.size(), 512), [&](const tbb::blocked_range<std::size_t>& r) {
       for (std::size_t v = r.begin(); v != r.end(); ++v) {
         Vec3 g;
         sh_.eval(V[v], 0, g);

@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "pm/base/error.h"
+#include "pm/base/parallel.h"
 #include "pm/base/stats.h"
 #include "pm/field/distance.h"
 
@@ -111,13 +112,13 @@ Band make_band(const std::vector<std::uint32_t>& active, const Dims& d) {
 // Band values from the grid (all of them) and back (active ones).
 void band_gather(const Band& b, const std::vector<float>& phi, std::vector<float>& v) {
   v.resize(b.grid.size());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, b.grid.size(), 4096),
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, b.grid.size(), 4096),
                     [&](const tbb::blocked_range<std::size_t>& r) {
                       for (std::size_t u = r.begin(); u != r.end(); ++u) v[u] = phi[b.grid[u]];
                     });
 }
 void band_scatter(const Band& b, const std::vector<float>& v, std::vector<float>& phi) {
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, b.active, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, b.active, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t t = r.begin(); t != r.end(); ++t) phi[b.grid[t]] = v[t];
   });
 }
@@ -134,7 +135,7 @@ double flow_step(const Band& band, const std::vector<float>& cur, std::vector<fl
   const std::size_t n = band.active;
   const std::size_t chunks = std::max<std::size_t>(1, n / 4096 + 1);
   std::vector<double> moved(chunks, 0.0);
-  tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t ch) {
+  pm::parallel_for(std::size_t(0), chunks, [&](std::size_t ch) {
     const std::size_t b = n * ch / chunks, e = n * (ch + 1) / chunks;
     double m = 0;
     for (std::size_t t = b; t < e; ++t) {
@@ -174,7 +175,7 @@ double gradient_defect(const Band& band, const std::vector<float>& cur, const do
   const std::size_t n = band.active;
   const std::size_t chunks = std::max<std::size_t>(1, n / 4096 + 1);
   std::vector<double> worst(chunks, 0.0);
-  tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t ch) {
+  pm::parallel_for(std::size_t(0), chunks, [&](std::size_t ch) {
     double w = 0;
     for (std::size_t t = n * ch / chunks, e = n * (ch + 1) / chunks; t < e; ++t) {
       const std::uint32_t* r = &band.ref[t * Band::kRefs];
@@ -276,7 +277,7 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
   gw.origin = gf.index_to_world(Vec3(double(wlo[0]), double(wlo[1]), double(wlo[2])));
   const std::size_t N = wd.count();
   std::vector<float> F(N);
-  tbb::parallel_for(std::size_t(0), wd.nz, [&](std::size_t kw) {
+  pm::parallel_for(std::size_t(0), wd.nz, [&](std::size_t kw) {
     const std::size_t k = kw + wlo[2];
     const std::size_t k0 = k / K, k1 = std::min(k0 + 1, pd.nz - 1);
     const double tz = double(k % K) / double(K);
@@ -334,7 +335,7 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
   std::vector<float> dR = timed_sd("tighten.sd_round", dS, wd, gw, dp);
   dp.iso = r;
   std::vector<float> dF = timed_sd("tighten.sd_fillet", dS, wd, gw, dp);
-  tbb::parallel_for(std::size_t(0), N, [&](std::size_t c) {
+  pm::parallel_for(std::size_t(0), N, [&](std::size_t c) {
     if (dR[c] < FLT_MAX) dR[c] = std::max(float(dR[c] - r), dS[c]);
     if (dF[c] > -FLT_MAX) dF[c] = std::min(float(dF[c] + r), dS[c]);
   });
@@ -343,7 +344,7 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
   std::vector<std::uint32_t> active;  // working-box indices (the box has < 2^31 nodes)
   {
     std::vector<std::vector<std::uint32_t>> per(wd.nz);
-    tbb::parallel_for(std::size_t(1), wd.nz - 1, [&](std::size_t k) {
+    pm::parallel_for(std::size_t(1), wd.nz - 1, [&](std::size_t k) {
       for (std::size_t j = 1; j + 1 < wd.ny; ++j)
         for (std::size_t i = 1; i + 1 < wd.nx; ++i) {
           const std::size_t c = i + wd.nx * (j + wd.ny * k);
@@ -359,7 +360,7 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
   // Clamped mean-curvature flow. `phi` and `next` agree off the active nodes,
   // so a step writes `next` at the active nodes and swaps the two.
   std::vector<float> lo_a(active.size()), hi_a(active.size());
-  tbb::parallel_for(std::size_t(0), active.size(), [&](std::size_t t) {
+  pm::parallel_for(std::size_t(0), active.size(), [&](std::size_t t) {
     lo_a[t] = dF[active[t]];
     hi_a[t] = dR[active[t]];
   });
@@ -397,7 +398,7 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
       const auto t0 = std::chrono::steady_clock::now();
       std::vector<float> d = signed_distance(phi, wd, gw, reinit);
       add_seconds("tighten.reinit", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-      tbb::parallel_for(std::size_t(1), wd.nz - 1, [&](std::size_t k) {
+      pm::parallel_for(std::size_t(1), wd.nz - 1, [&](std::size_t k) {
         for (std::size_t j = 1; j + 1 < wd.ny; ++j)
           for (std::size_t i = 1; i + 1 < wd.nx; ++i) {
             const std::size_t c = i + wd.nx * (j + wd.ny * k);
@@ -419,7 +420,7 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
   stage.emplace("tighten.redistance");
   // The whole grid: outside the working box every node is outside.
   std::vector<float> full(fd.count(), FLT_MAX / 4);
-  tbb::parallel_for(std::size_t(0), wd.nz, [&](std::size_t kw) {
+  pm::parallel_for(std::size_t(0), wd.nz, [&](std::size_t kw) {
     for (std::size_t jw = 0; jw < wd.ny; ++jw)
       std::copy_n(phi.begin() + long(wd.nx * (jw + wd.ny * kw)), wd.nx,
                   full.begin() + long(wlo[0] + fd.nx * (jw + wlo[1] + fd.ny * (kw + wlo[2]))));
