@@ -2,6 +2,7 @@
 
 #include <teem/nrrd.h>
 
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -60,8 +61,28 @@ struct NrrdHolder {
 };
 struct NioHolder {
   NrrdIoState* nio = nrrdIoStateNew();
+  FILE* header = nullptr;  // the file load() opened
+  // nrrdLoad() as Teem 1.12 does it, except that the header file stays ours.
+  // nrrdLoad closes the file it opened when the read fails, while
+  // nio->dataFile may still name that very file (attached data), and the
+  // destructor, which must close a data file Teem left open, closed it a
+  // second time (fuzz_sizing, tests/data/regress/sizing-gzip-double-fclose).
+  int load(Nrrd* n, const std::string& path) {
+    // The header's folder, as Teem's _nrrdSplitName finds it: detached data
+    // files are named relative to it.
+    const std::size_t slash = path.rfind('/');
+    nio->path = static_cast<char*>(airFree(nio->path));
+    nio->path = airStrdup(slash != std::string::npos && slash + 1 < path.size() ? path.substr(0, slash).c_str() : ".");
+    header = std::fopen(path.c_str(), "rb");
+    if (!header) {
+      biffAddf(NRRD, "%s: fopen(\"%s\",\"rb\") failed: %s", "nrrdLoad", path.c_str(), std::strerror(errno));
+      return 2;
+    }
+    return nrrdRead(n, header, nio);
+  }
   ~NioHolder() {
-    if (nio->dataFile && nio->dataFile != stdin) std::fclose(nio->dataFile);
+    if (nio->dataFile && nio->dataFile != stdin && nio->dataFile != header) std::fclose(nio->dataFile);
+    if (header) std::fclose(header);
     nio->dataFile = nullptr;
     nrrdIoStateNix(nio);
   }
@@ -172,7 +193,7 @@ Volume read_nrrd(const std::string& path) {
     NioHolder io;
     io.nio->skipData = AIR_TRUE;
     io.nio->keepNrrdDataFileOpen = AIR_TRUE;
-    if (nrrdLoad(h.n, path.c_str(), io.nio)) throw InputError(where + ": " + teem_error());
+    if (io.load(h.n, path)) throw InputError(where + ": " + teem_error());
     if (h.n->dim != 3) {
       std::ostringstream m;
       m << where << ": expected 3 axes, got " << h.n->dim;
@@ -224,7 +245,7 @@ Volume read_nrrd(const std::string& path) {
   // Pass 2: the data.
   NrrdHolder h;
   NioHolder io;
-  if (nrrdLoad(h.n, path.c_str(), io.nio))
+  if (io.load(h.n, path))
     throw InputError(where + ": truncated or corrupt voxel data: " + teem_error());
   const Dims again{h.n->axis[0].size, h.n->axis[1].size, h.n->axis[2].size};
   VoxelType type2;
