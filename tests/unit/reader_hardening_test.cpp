@@ -161,6 +161,10 @@ TEST(ReaderHardening, OffColourRecordsAreCheckedBeforeCgalReadsThem) {
                      {"e.off", "vertex 0 has colour-map index -5"});
   expect_input_error([&] { read_mesh(off("f.off", "COFF\n4 4 6\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2 1 0 0\n3 0 3 1\n3 1 3 2\n3 2 3 0\n")); },
                      {"f.off", "facet 1 has 0 colour values"});
+  expect_input_error([&] { read_mesh(off("t.off", "COFF\n4 4 6\n# a comment long enough for the size check\n0 0 0\n1 0 0\n")); },
+                     {"t.off", "the file ends after 2 of 4 vertices"});
+  expect_input_error([&] { read_mesh(off("u.off", "COFF\n4 4 6\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2 9 9 9\n")); },
+                     {"u.off", "the file ends after 1 of 4 faces"});
   expect_input_error([&] { read_mesh(off("g.off", "STOFF\n4 4 6\n0 0 0 0 0\n1 0 0 1 0\n0 1 0 0 1\n0 0 1 1 1\n" + faces)); },
                      {"g.off", "texture coordinates without colours"});
   // Binary OFF: a negative facet vertex count would become a huge size_t.
