@@ -527,6 +527,19 @@ TEST(ParticlesDeterminism, SameSeedSameOutputForAnyThreadCount) {
   EXPECT_TRUE(other.positions.size() != one.positions.size() || other.positions[0] != one.positions[0]);
 }
 
+// Above 2000 particles (kSerialBelow in particles.cpp) the sweeps run as
+// parallel colour rounds: one and two threads must still agree bit for bit.
+// This is also the run in which ThreadSanitizer (scripts/test --tsan) sees
+// the parallel sweep.
+TEST(ParticlesDeterminism, ParallelSweepsOfALargeSystem) {
+  const TorusField f(1.0, 0.4);
+  ParticleParams p = quiet_params(0.075);
+  const ParticleResult one = run_with_threads(f, p, 1);
+  ASSERT_GT(one.positions.size(), 2000u);
+  const ParticleResult two = run_with_threads(f, p, 2);
+  expect_identical(one, two);
+}
+
 // --- bad input ------------------------------------------------------------------------
 
 TEST(ParticlesErrors, BadParametersAndInputs) {
