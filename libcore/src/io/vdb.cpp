@@ -6,8 +6,10 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/Dense.h>
 
+#include <cstdint>
 #include <fstream>
 #include <ios>
+#include <limits>
 #include <mutex>
 #include <new>
 #include <sstream>
@@ -35,8 +37,17 @@ Volume dense_volume(const GridT& grid, VoxelType type, const std::string& path) 
   const std::string where = std::string(kWho) + ": " + quote(path);
   const openvdb::CoordBBox bbox = grid.evalActiveVoxelBoundingBox();
   if (bbox.empty()) throw InputError(where + ": grid " + quote(grid.getName()) + " has no active voxels");
-  const openvdb::Coord dim = bbox.dim();
-  const Dims dims{std::size_t(dim.x()), std::size_t(dim.y()), std::size_t(dim.z())};
+  // The extent in 64 bits: CoordBBox::dim() overflows int for a box wider
+  // than 2^31 voxels (fuzz_vdb, tests/data/regress/vdb-wide-bbox).
+  std::size_t extent[3];
+  for (int a = 0; a < 3; ++a) {
+    const std::int64_t n = std::int64_t(bbox.max()[a]) - std::int64_t(bbox.min()[a]) + 1;
+    if (n > std::numeric_limits<std::int32_t>::max())
+      throw InputError(where + ": grid " + quote(grid.getName()) + "'s active voxels span " + std::to_string(n) +
+                       " voxels along axis " + std::to_string(a) + "; expected at most 2^31 - 1");
+    extent[a] = std::size_t(n);
+  }
+  const Dims dims{extent[0], extent[1], extent[2]};
 
   const openvdb::math::Transform& xf = grid.transform();
   if (!xf.isLinear())
