@@ -134,14 +134,10 @@ class OffCheck {
     pos_ = e;
     return v >= std::numeric_limits<int>::min() && v <= std::numeric_limits<int>::max();
   }
-  static bool number_char(char c) {
-    return std::isdigit(static_cast<unsigned char>(c)) || c == '.' || c == 'e' || c == 'E' || c == '+' || c == '-';
-  }
   // The numbers of the next record, as CGAL's scanner reads them: white space
-  // and # comment lines skipped, one line, cut at '#', then doubles the way
-  // CGAL's IO::iformat reads them (a sign, then the longest run of digits,
-  // '.', 'e', 'E', '+' and '-', converted by sscanf: "1-2" is 1) until one
-  // fails. False at the end of the file.
+  // and # comment lines skipped, one line, cut at '#', then doubles read with
+  // `>>` until one fails (CGAL's IO::iformat is plain `>>` outside MSVC, so
+  // "1-2" is 1 and -2, and "2e" fails). False at the end of the file.
   bool record(std::vector<double>& out) {
     out.clear();
     skip_space_and_comments();
@@ -150,21 +146,11 @@ class OffCheck {
     if (e == std::string::npos) e = size();
     std::size_t end = text_.find('#', pos_);
     if (end > e) end = e;
-    std::size_t p = pos_;
+    std::istringstream line(text_.substr(pos_, end - pos_));
     pos_ = e;
-    std::string buf;
-    for (;;) {
-      while (p < end && std::isspace(static_cast<unsigned char>(text_[p]))) ++p;
-      if (p >= end) return true;
-      buf.clear();
-      if (text_[p] == '-') buf += '-';
-      if (text_[p] == '-' || text_[p] == '+') ++p;
-      while (p < end && number_char(text_[p])) buf += text_[p++];
-      char* stop = nullptr;
-      const double d = std::strtod(buf.c_str(), &stop);
-      if (stop == buf.c_str()) return true;
-      out.push_back(d);
-    }
+    double d = 0;
+    while (line >> d) out.push_back(d);
+    return true;
   }
 
   // Colour values c0.. of a record, as CGAL's scan_color converts them.
