@@ -1,10 +1,13 @@
 #include "pm/io/vdb.h"
 
+#include <openvdb/io/Compression.h>
 #include <openvdb/io/File.h>
 #include <openvdb/io/Stream.h>
 #include <openvdb/math/Transform.h>
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/Dense.h>
+
+#include <dlfcn.h>
 
 #include <cstdint>
 #include <fstream>
@@ -14,10 +17,66 @@
 #include <new>
 #include <sstream>
 #include <stdexcept>
+#include <string>
 
 #include "pm/base/atomic_file.h"
 #include "pm/base/error.h"
 #include "pm/io/volume_io.h"
+
+// OpenVDB 10.0's io::bloscFromStream (io/Compression.cc) reads an
+// uncompressed chunk of the size the file declares into a buffer of the size
+// the tree expects, and only then compares the two, so a crafted file writes
+// past the buffer (fuzz_vdb, tests/data/regress/vdb-blosc-chunk-overflow;
+// later OpenVDB releases compare first). The tree readers that call it are
+// templates instantiated in this library, so their calls bind to the
+// definitions below: they read the chunk's size, refuse a wrong uncompressed
+// size before reading anything, and hand compressed chunks back to OpenVDB's
+// own function (found with dlsym(RTLD_NEXT)) with the stream where it was.
+// unzipFromStream has the same shape and gets the same guard.
+namespace openvdb {
+OPENVDB_USE_VERSION_NAMESPACE
+namespace OPENVDB_VERSION_NAME {
+namespace io {
+namespace {
+#define PM_VDB_STR2(x) #x
+#define PM_VDB_STR(x) PM_VDB_STR2(x)
+void checked_chunk(std::istream& is, char* data, size_t numBytes, const char* function, const char* what) {
+  Int64 n = 0;
+  is.read(reinterpret_cast<char*>(&n), 8);
+  if (!is.good()) OPENVDB_THROW(RuntimeError, "stream failure reading the size of a " << what << " chunk");
+  if (n <= 0) {
+    if (n == std::numeric_limits<Int64>::min() || size_t(-n) != numBytes)
+      OPENVDB_THROW(RuntimeError, "expected a " << numBytes << "-byte uncompressed " << what
+                                                << " chunk, the file declares " << n);
+    if (data) is.read(data, -n);
+    else is.seekg(-n, std::ios_base::cur);
+    return;
+  }
+  is.seekg(-8, std::ios_base::cur);
+  // The mangled name of openvdb::<version namespace>::io::<function>(std::istream&, char*, size_t).
+  const std::string ns = PM_VDB_STR(OPENVDB_VERSION_NAME);
+  const std::string fn = function;
+  const std::string symbol =
+      "_ZN7openvdb" + std::to_string(ns.size()) + ns + "2io" + std::to_string(fn.size()) + fn + "ERSiPcm";
+  using Read = void (*)(std::istream&, char*, size_t);
+  const Read original = reinterpret_cast<Read>(dlsym(RTLD_NEXT, symbol.c_str()));
+  if (!original) OPENVDB_THROW(RuntimeError, "cannot find OpenVDB's " << symbol);
+  original(is, data, numBytes);
+}
+#undef PM_VDB_STR
+#undef PM_VDB_STR2
+}  // namespace
+
+void bloscFromStream(std::istream& is, char* data, size_t numBytes) {
+  checked_chunk(is, data, numBytes, "bloscFromStream", "blosc");
+}
+void unzipFromStream(std::istream& is, char* data, size_t numBytes) {
+  checked_chunk(is, data, numBytes, "unzipFromStream", "zip");
+}
+
+}  // namespace io
+}  // namespace OPENVDB_VERSION_NAME
+}  // namespace openvdb
 
 namespace pm {
 
