@@ -177,6 +177,27 @@ TEST(ReaderHardening, OffColourRecordsAreCheckedBeforeCgalReadsThem) {
   be32(0xfffffffdu);                    // facet count -3
   be32(0); be32(1); be32(2);
   expect_input_error([&] { read_mesh(off("h.off", bin)); }, {"h.off", "facet 0 has vertex count -3"});
+  // A valid binary tetrahedron reads; cut inside its last face, it is refused
+  // (CGAL would resize that face to a count it never read).
+  bin = "OFF BINARY\n";
+  be32(4); be32(4); be32(6);
+  const float xyz[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
+  for (float c : xyz) {
+    std::uint32_t u;
+    std::memcpy(&u, &c, 4);
+    be32(u);
+  }
+  const std::uint32_t faces_v[4][3] = {{0, 2, 1}, {0, 1, 3}, {1, 2, 3}, {0, 3, 2}};
+  for (const auto& fv : faces_v) {  // each face: its vertex count, then its indices
+    be32(3);
+    for (const std::uint32_t v : fv) be32(v);
+  }
+  const Mesh tet = read_mesh(off("tet.off", bin));
+  EXPECT_EQ(tet.vertices.size(), 4u);
+  EXPECT_EQ(tet.faces.size(), 4u);
+  EXPECT_EQ(tet.vertices[3].z, 1.0);
+  expect_input_error([&] { read_mesh(off("cut.off", bin.substr(0, bin.size() - 14))); },
+                     {"cut.off", "the binary data end inside face 3 of 4"});
 }
 
 // --- fuzzer findings ----------------------------------------------------------

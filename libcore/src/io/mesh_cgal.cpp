@@ -237,7 +237,8 @@ class OffCheck {
   // Binary OFF: big-endian int32 counts after the BINARY line, float vertex
   // records (CGAL reads no colours from them), then per facet an int32 count
   // and that many int32 indices. CGAL converts a negative count to a huge
-  // std::size_t and resizes the facet to it.
+  // std::size_t and resizes the facet to it; a count beyond the file's end
+  // is refused too (CGAL would read the facet's indices from a failed stream).
   void binary(bool dim) {
     const auto int32 = [&](std::int64_t& out) {
       if (pos_ + 4 > size()) return false;
@@ -254,11 +255,17 @@ class OffCheck {
            std::to_string(ne) + " edges, impossible in a file of " + std::to_string(n) + " bytes");
     const std::int64_t hom = h_ ? 1 : 0;
     const std::int64_t floats = 3 + hom + (n_ ? 3 + hom : 0) + (st_ ? 2 + hom : 0);
-    if (std::uint64_t(nv) * std::uint64_t(4 * floats) > size() - pos_) return;  // truncated: CGAL reports it
+    // CGAL does not check its stream after reading a binary number, so in a
+    // truncated file it resizes a facet to an uninitialised count (fuzz_off,
+    // tests/data/regress/off-binary-truncated): every record must be there.
+    const auto truncated = [&](const std::string& what) {
+      fail("the binary data end inside " + what + " (truncated file or bad counts?)");
+    };
+    if (std::uint64_t(nv) * std::uint64_t(4 * floats) > size() - pos_) truncated("the vertices");
     pos_ += std::size_t(nv * 4 * floats);
     for (std::int64_t f = 0; f < nf; ++f) {
       std::int64_t count = 0;
-      if (!int32(count)) return;
+      if (!int32(count)) truncated("face " + std::to_string(f) + " of " + std::to_string(nf));
       if (count < 0 || count > std::int64_t(size() - pos_) / 4)
         fail("facet " + std::to_string(f) + " has vertex count " + std::to_string(count) +
              "; expected an integer >= 3, at most the indices left in the file");
