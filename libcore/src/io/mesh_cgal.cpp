@@ -122,17 +122,28 @@ class OffCheck {
     if (pos_ < size()) ++pos_;
     return w;
   }
-  // `in >> int`: white space, a sign, digits. False where CGAL's read fails.
+  // `in >> int`: white space, a sign, digits (any number of them: leading
+  // zeros count for nothing; fuzz_off, tests/data/regress/off-count-leading-zeros).
+  // False where CGAL's read fails, as for a value beyond int.
   bool integer(long long& v) {
     while (pos_ < size() && std::isspace(static_cast<unsigned char>(text_[pos_]))) ++pos_;
     std::size_t e = pos_;
+    const bool negative = e < size() && text_[e] == '-';
     if (e < size() && (text_[e] == '+' || text_[e] == '-')) ++e;
     const std::size_t digits = e;
-    while (e < size() && std::isdigit(static_cast<unsigned char>(text_[e]))) ++e;
-    if (e == digits || e - digits > 12) return false;
-    v = std::stoll(text_.substr(pos_, e - pos_));
+    long long x = 0;
+    bool beyond = false;
+    for (; e < size() && std::isdigit(static_cast<unsigned char>(text_[e])); ++e) {
+      x = x * 10 + (text_[e] - '0');
+      if (x > (1LL << 31)) {
+        beyond = true;
+        x = 1LL << 31;
+      }
+    }
+    if (e == digits) return false;
     pos_ = e;
-    return v >= std::numeric_limits<int>::min() && v <= std::numeric_limits<int>::max();
+    v = negative ? -x : x;
+    return !beyond && v >= std::numeric_limits<int>::min() && v <= std::numeric_limits<int>::max();
   }
   // The numbers of the next record, as CGAL's scanner reads them: white space
   // and # comment lines skipped, one line, cut at '#', then doubles read with
