@@ -167,6 +167,13 @@ TEST(ReaderHardening, OffColourRecordsAreCheckedBeforeCgalReadsThem) {
                      {"u.off", "the file ends after 1 of 4 faces"});
   expect_input_error([&] { read_mesh(off("g.off", "STOFF\n4 4 6\n0 0 0 0 0\n1 0 0 1 0\n0 1 0 0 1\n0 0 1 1 1\n" + faces)); },
                      {"g.off", "texture coordinates without colours"});
+  // Header counts: a negative vertex count after nOFF's dimension (CGAL
+  // would take it as a huge size) and an edge count CGAL would double past int are refused.
+  const std::string tet_text = "0 0 0\n1 0 0\n0 1 0\n0 0 1\n" + faces;
+  expect_input_error([&] { read_mesh(off("nv.off", "nOFF\n3\n-4 4 6\n" + tet_text)); }, {"nv.off", "-4 vertices"});
+  expect_input_error([&] { read_mesh(off("ne.off", "OFF\n4 4 2000000000\n" + tet_text)); },
+                     {"ne.off", "edge count 2000000000"});
+  EXPECT_EQ(read_mesh(off("z.off", "OFF\n0004 0004 0\n" + tet_text)).faces.size(), 4u);
   // Binary OFF: a negative facet vertex count would become a huge size_t.
   std::string bin = "OFF BINARY\n";
   const auto be32 = [&](std::uint32_t u) {

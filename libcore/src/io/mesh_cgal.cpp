@@ -124,26 +124,22 @@ class OffCheck {
   }
   // `in >> int`: white space, a sign, digits (any number of them: leading
   // zeros count for nothing; fuzz_off, tests/data/regress/off-count-leading-zeros).
-  // False where CGAL's read fails, as for a value beyond int.
+  // False without digits; values beyond int (where CGAL's read fails) are
+  // kept, saturated at 10^18, for the caller to refuse by name.
   bool integer(long long& v) {
     while (pos_ < size() && std::isspace(static_cast<unsigned char>(text_[pos_]))) ++pos_;
     std::size_t e = pos_;
     const bool negative = e < size() && text_[e] == '-';
     if (e < size() && (text_[e] == '+' || text_[e] == '-')) ++e;
     const std::size_t digits = e;
+    constexpr long long kMax = 1000000000000000000LL;
     long long x = 0;
-    bool beyond = false;
-    for (; e < size() && std::isdigit(static_cast<unsigned char>(text_[e])); ++e) {
-      x = x * 10 + (text_[e] - '0');
-      if (x > (1LL << 31)) {
-        beyond = true;
-        x = 1LL << 31;
-      }
-    }
+    for (; e < size() && std::isdigit(static_cast<unsigned char>(text_[e])); ++e)
+      x = x > kMax / 10 ? kMax : x * 10 + (text_[e] - '0');
     if (e == digits) return false;
     pos_ = e;
     v = negative ? -x : x;
-    return !beyond && v >= std::numeric_limits<int>::min() && v <= std::numeric_limits<int>::max();
+    return true;
   }
   // The numbers of the next record, as CGAL's scanner reads them: white space
   // and # comment lines skipped, one line, cut at '#', then doubles read with
@@ -199,8 +195,19 @@ class OffCheck {
   void ascii(bool dim) {
     long long d = 0, nv = 0, nf = 0, ne = 0;
     if (dim && !integer(d)) return;
-    if (!integer(nv) || !integer(nf) || !integer(ne) || nv < 0 || nf < 0) return;  // CGAL reports these
+    if (!integer(nv) || !integer(nf) || !integer(ne)) return;  // CGAL reports these
+    // CGAL refuses a negative face count but takes a negative vertex count as
+    // a huge size; counts beyond int it cannot read.
+    if (nv < 0 || nf < 0)
+      fail("the header declares " + std::to_string(nv) + " vertices and " + std::to_string(nf) +
+           " faces; expected counts >= 0");
     counts_fit(nv, nf, 6, 2);
+    if (nv > std::numeric_limits<int>::max() || nf > std::numeric_limits<int>::max())
+      fail("the header's counts " + std::to_string(nv) + " " + std::to_string(nf) +
+           " exceed what the OFF reader takes (2147483647)");
+    // CGAL doubles the edge count in an int.
+    if (ne < -(1LL << 30) || ne >= (1LL << 30))
+      fail("the header's edge count " + std::to_string(ne) + " is out of range; expected 0 to 1073741823");
     if (st_ && !c_)
       fail("texture coordinates without colours (" + std::string(h_ ? "4" : "") +
            "STOFF) are not read: CGAL's reader would index them from an unset offset; expected OFF, COFF, NOFF, "
