@@ -40,7 +40,18 @@ namespace io {
 namespace {
 #define PM_VDB_STR2(x) #x
 #define PM_VDB_STR(x) PM_VDB_STR2(x)
-void checked_chunk(std::istream& is, char* data, size_t numBytes, const char* function, const char* what) {
+using ReadChunk = void (*)(std::istream&, char*, size_t);
+// OpenVDB's own io::<function>(std::istream&, char*, size_t), by its mangled
+// name in this OpenVDB's version namespace; null when it is not there.
+ReadChunk openvdb_function(const std::string& function) {
+  const std::string ns = PM_VDB_STR(OPENVDB_VERSION_NAME);
+  const std::string symbol = "_ZN7openvdb" + std::to_string(ns.size()) + ns + "2io" +
+                             std::to_string(function.size()) + function + "ERSiPcm";
+  return reinterpret_cast<ReadChunk>(dlsym(RTLD_NEXT, symbol.c_str()));
+}
+#undef PM_VDB_STR
+#undef PM_VDB_STR2
+void checked_chunk(std::istream& is, char* data, size_t numBytes, ReadChunk original, const char* what) {
   Int64 n = 0;
   is.read(reinterpret_cast<char*>(&n), 8);
   if (!is.good()) OPENVDB_THROW(RuntimeError, "stream failure reading the size of a " << what << " chunk");
@@ -52,26 +63,19 @@ void checked_chunk(std::istream& is, char* data, size_t numBytes, const char* fu
     else is.seekg(-n, std::ios_base::cur);
     return;
   }
+  if (!original) OPENVDB_THROW(RuntimeError, "cannot find OpenVDB's own " << what << " chunk reader");
   is.seekg(-8, std::ios_base::cur);
-  // The mangled name of openvdb::<version namespace>::io::<function>(std::istream&, char*, size_t).
-  const std::string ns = PM_VDB_STR(OPENVDB_VERSION_NAME);
-  const std::string fn = function;
-  const std::string symbol =
-      "_ZN7openvdb" + std::to_string(ns.size()) + ns + "2io" + std::to_string(fn.size()) + fn + "ERSiPcm";
-  using Read = void (*)(std::istream&, char*, size_t);
-  const Read original = reinterpret_cast<Read>(dlsym(RTLD_NEXT, symbol.c_str()));
-  if (!original) OPENVDB_THROW(RuntimeError, "cannot find OpenVDB's " << symbol);
   original(is, data, numBytes);
 }
-#undef PM_VDB_STR
-#undef PM_VDB_STR2
 }  // namespace
 
 void bloscFromStream(std::istream& is, char* data, size_t numBytes) {
-  checked_chunk(is, data, numBytes, "bloscFromStream", "blosc");
+  static const ReadChunk original = openvdb_function("bloscFromStream");
+  checked_chunk(is, data, numBytes, original, "blosc");
 }
 void unzipFromStream(std::istream& is, char* data, size_t numBytes) {
-  checked_chunk(is, data, numBytes, "unzipFromStream", "zip");
+  static const ReadChunk original = openvdb_function("unzipFromStream");
+  checked_chunk(is, data, numBytes, original, "zip");
 }
 
 }  // namespace io
