@@ -100,15 +100,19 @@ Volume dense_volume(const GridT& grid, VoxelType type, const std::string& path) 
   const std::string where = std::string(kWho) + ": " + quote(path);
   const openvdb::CoordBBox bbox = grid.evalActiveVoxelBoundingBox();
   if (bbox.empty()) throw InputError(where + ": grid " + quote(grid.getName()) + " has no active voxels");
-  // The extent in 64 bits: CoordBBox::dim() overflows int for a box wider
-  // than 2^31 voxels (fuzz_vdb, tests/data/regress/vdb-wide-bbox).
+  // The extent in 64 bits, and index coordinates within +-2^30: OpenVDB adds
+  // and subtracts them in int (CoordBBox::dim() for a box wider than 2^31
+  // voxels, the parallel split of copyToDense for min + max; fuzz_vdb,
+  // tests/data/regress/vdb-wide-bbox, vdb-far-bbox).
+  constexpr std::int64_t kFar = std::int64_t(1) << 30;
   std::size_t extent[3];
   for (int a = 0; a < 3; ++a) {
-    const std::int64_t n = std::int64_t(bbox.max()[a]) - std::int64_t(bbox.min()[a]) + 1;
-    if (n > std::numeric_limits<std::int32_t>::max())
-      throw InputError(where + ": grid " + quote(grid.getName()) + "'s active voxels span " + std::to_string(n) +
-                       " voxels along axis " + std::to_string(a) + "; expected at most 2^31 - 1");
-    extent[a] = std::size_t(n);
+    const std::int64_t lo = bbox.min()[a], hi = bbox.max()[a];
+    if (lo < -kFar || hi >= kFar)
+      throw InputError(where + ": grid " + quote(grid.getName()) + " has active voxels at index " +
+                       std::to_string(lo < -kFar ? lo : hi) + " along axis " + std::to_string(a) +
+                       "; expected indices in [-2^30, 2^30)");
+    extent[a] = std::size_t(hi - lo + 1);
   }
   const Dims dims{extent[0], extent[1], extent[2]};
 
