@@ -98,23 +98,25 @@ const char* const kWho = "read_vdb";
 template <class GridT, class T>
 Volume dense_volume(const GridT& grid, VoxelType type, const std::string& path) {
   const std::string where = std::string(kWho) + ": " + quote(path);
+  // Index coordinates within +-2^30: OpenVDB adds and subtracts them in int
+  // (the root's tile and child extents in evalActiveVoxelBoundingBox,
+  // CoordBBox::dim() for a box wider than 2^31 voxels, copyToDense's parallel
+  // split of min + max; fuzz_vdb, tests/data/regress/vdb-wide-bbox,
+  // vdb-far-bbox, vdb-far-root-tile). So every root entry (tile or child,
+  // active or not) is checked before any box is computed.
+  constexpr std::int64_t kFar = std::int64_t(1) << 30;
+  using RootChild = typename GridT::TreeType::RootNodeType::ChildNodeType;
+  for (auto it = grid.tree().root().cbeginChildAll(); it; ++it) {
+    const openvdb::Coord c = it.getCoord();
+    for (int a = 0; a < 3; ++a)
+      if (c[a] < -kFar || std::int64_t(c[a]) + RootChild::DIM > kFar)
+        throw InputError(where + ": grid " + quote(grid.getName()) + " has a node at index " + std::to_string(c[a]) +
+                         " along axis " + std::to_string(a) + "; expected indices in [-2^30, 2^30)");
+  }
   const openvdb::CoordBBox bbox = grid.evalActiveVoxelBoundingBox();
   if (bbox.empty()) throw InputError(where + ": grid " + quote(grid.getName()) + " has no active voxels");
-  // The extent in 64 bits, and index coordinates within +-2^30: OpenVDB adds
-  // and subtracts them in int (CoordBBox::dim() for a box wider than 2^31
-  // voxels, the parallel split of copyToDense for min + max; fuzz_vdb,
-  // tests/data/regress/vdb-wide-bbox, vdb-far-bbox).
-  constexpr std::int64_t kFar = std::int64_t(1) << 30;
-  std::size_t extent[3];
-  for (int a = 0; a < 3; ++a) {
-    const std::int64_t lo = bbox.min()[a], hi = bbox.max()[a];
-    if (lo < -kFar || hi >= kFar)
-      throw InputError(where + ": grid " + quote(grid.getName()) + " has active voxels at index " +
-                       std::to_string(lo < -kFar ? lo : hi) + " along axis " + std::to_string(a) +
-                       "; expected indices in [-2^30, 2^30)");
-    extent[a] = std::size_t(hi - lo + 1);
-  }
-  const Dims dims{extent[0], extent[1], extent[2]};
+  const openvdb::Coord dim = bbox.dim();  // within 2^31 after the check above
+  const Dims dims{std::size_t(dim.x()), std::size_t(dim.y()), std::size_t(dim.z())};
 
   const openvdb::math::Transform& xf = grid.transform();
   if (!xf.isLinear())
