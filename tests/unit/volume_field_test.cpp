@@ -456,7 +456,14 @@ TEST(VolumeField, Avx2PathGivesTheBaselineBits) {
     }
     EXPECT_EQ(differ, 0) << base.describe() << ": AVX2 and baseline results differ at " << differ << " of " << n
                          << " points";
-    // Values alone too (a separate code path: order 0).
+    // Value and gradient (order 1), and values alone (order 0): code paths of
+    // their own.
+    base.value_gradient_batch(pts.data(), n, f0.data(), g0.data());
+    fast.value_gradient_batch(pts.data(), n, f1.data(), g1.data());
+    for (std::size_t k = 0; k < n; ++k) {
+      ASSERT_EQ(bits(f0[k]), bits(f1[k])) << base.describe() << " point " << k;
+      for (int a = 0; a < 3; ++a) ASSERT_EQ(bits(g0[k][a]), bits(g1[k][a])) << base.describe() << " point " << k;
+    }
     base.value_batch(pts.data(), n, f0.data());
     fast.value_batch(pts.data(), n, f1.data());
     for (std::size_t k = 0; k < n; ++k) ASSERT_EQ(bits(f0[k]), bits(f1[k])) << base.describe() << " point " << k;
