@@ -350,6 +350,15 @@ PM_AVX2 double dot4(const double w[4], __m256d q) {
   const __m128d s = _mm_hadd_pd(_mm256_castpd256_pd128(m), _mm256_extractf128_pd(m, 1));  // m0+m1, m2+m3
   return _mm_cvtsd_f64(_mm_add_sd(s, _mm_unpackhi_pd(s, s)));
 }
+// Four dot4()s at once, w_k . q_k in lane k, each summed as there:
+// (w0 q0 + w1 q1) + (w2 q2 + w3 q3).
+PM_AVX2 __m256d dot4x4(const double* w0, __m256d q0, const double* w1, __m256d q1, const double* w2, __m256d q2,
+                       const double* w3, __m256d q3) {
+  const __m256d h01 = _mm256_hadd_pd(_mm256_mul_pd(_mm256_loadu_pd(w0), q0), _mm256_mul_pd(_mm256_loadu_pd(w1), q1));
+  const __m256d h23 = _mm256_hadd_pd(_mm256_mul_pd(_mm256_loadu_pd(w2), q2), _mm256_mul_pd(_mm256_loadu_pd(w3), q3));
+  // h01 = 0:(w0q0+w1q1) 1:(w0q0+w1q1) 0:(w2q2+w3q3) 1:(w2q2+w3q3), with k:(...) the terms of dot k.
+  return _mm256_add_pd(_mm256_permute2f128_pd(h01, h23, 0x20), _mm256_permute2f128_pd(h01, h23, 0x31));
+}
 #undef PM_AVX2
 
 // The sums of accumulate() over one row layout: kBlend with the x taps in
@@ -413,22 +422,22 @@ __attribute__((target("avx2"), always_inline)) inline double accumulate_rows_avx
       }
     }
   }
-  const double f = dot4(wv[0], Qvv);
-  if constexpr (Order >= 1) {
+  if constexpr (Order == 0) {
+    return dot4(wv[0], Qvv);
+  } else {
     const __m256d QW = mixed ? Qww : Qvv;
-    g[0] = dot4(d1[0], QW);
-    g[1] = dot4(wd[0], Q1w);
-    g[2] = dot4(wd[0], Qw1);
+    alignas(32) double r[4];
+    _mm256_store_pd(r, dot4x4(wv[0], Qvv, d1[0], QW, wd[0], Q1w, wd[0], Qw1));
+    g[0] = r[1];
+    g[1] = r[2];
+    g[2] = r[3];
     if constexpr (Order >= 2) {
-      h[0] = dot4(d2[0], QW);
-      h[1] = dot4(d1[0], Q1w);
-      h[2] = dot4(d1[0], Qw1);
-      h[3] = dot4(wd[0], Q2w);
+      _mm256_storeu_pd(h, dot4x4(d2[0], QW, d1[0], Q1w, d1[0], Qw1, wd[0], Q2w));
       h[4] = dot4(wd[0], Q11);
       h[5] = dot4(wd[0], Qw2);
     }
+    return r[0];
   }
-  return f;
 }
 
 // The four x taps lie in the brick holding tap 0 (offsets bx .. bx+3) and
@@ -632,6 +641,33 @@ struct SortPlan {
 };
 
 #if PM_FIELD_AVX2
+// Index-space positions of the four points p[0..4): to_index()'s operations
+// in its order, one point per lane (the same bits): t[a] = axis a.
+struct IndexMap4 {
+  __m256d m[3][3], o[3];
+  __attribute__((target("avx2"))) explicit IndexMap4(const Frame& fr) {
+    for (int a = 0; a < 3; ++a) {
+      for (int b = 0; b < 3; ++b) m[a][b] = _mm256_set1_pd(fr.inv_dirs.m[a][b]);
+      o[a] = _mm256_set1_pd(fr.origin[a]);
+    }
+  }
+  __attribute__((target("avx2"), always_inline)) inline void operator()(const Vec3* p, __m256d t[3]) const {
+    static_assert(sizeof(Vec3) == 3 * sizeof(double), "four points are twelve doubles");
+    // Twelve doubles x0 y0 z0 x1 | y1 z1 x2 y2 | z2 x3 y3 z3 to X, Y, Z.
+    const double* q = &p->x;
+    const __m256d a = _mm256_loadu_pd(q), b = _mm256_loadu_pd(q + 4), c = _mm256_loadu_pd(q + 8);
+    const __m256d m1 = _mm256_blend_pd(a, b, 0xc);          // x0 y0 x2 y2
+    const __m256d m2 = _mm256_permute2f128_pd(a, c, 0x21);  // z0 x1 z2 x3
+    const __m256d m3 = _mm256_blend_pd(b, c, 0xc);          // y1 z1 y3 z3
+    const __m256d d[3] = {_mm256_sub_pd(_mm256_shuffle_pd(m1, m2, 0xa), o[0]),
+                          _mm256_sub_pd(_mm256_shuffle_pd(m1, m3, 0x5), o[1]),
+                          _mm256_sub_pd(_mm256_shuffle_pd(m2, m3, 0xa), o[2])};
+    for (int r = 0; r < 3; ++r)  // dot(row r, d): (r0 d0 + r1 d1) + r2 d2
+      t[r] = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(m[r][0], d[0]), _mm256_mul_pd(m[r][1], d[1])),
+                           _mm256_mul_pd(m[r][2], d[2]));
+  }
+};
+
 // The first pass of sort_first_digit() four points at a time: key[i] (the
 // same keys) and the histogram of their high digits. Returns how many points
 // it did (a multiple of four); the caller does the rest. Only for brick
@@ -639,13 +675,12 @@ struct SortPlan {
 __attribute__((target("avx2"), noinline)) std::size_t brick_keys_avx2(const Frame& fr, const Vec3* x, std::size_t n,
                                                                      int shift, int low, std::uint32_t* key,
                                                                      std::uint32_t* count) {
-  static_assert(sizeof(Vec3) == 3 * sizeof(double), "four points are twelve doubles");
-  __m256d m[3][3], o[3], lo = _mm256_set1_pd(-2.0), hi[3];
+  const IndexMap4 to_index4(fr);
+  const __m256d lo = _mm256_set1_pd(-2.0);
+  __m256d hi[3];
   __m128i top[3];  // n_a - 1
   std::int32_t nb[3];
   for (int a = 0; a < 3; ++a) {
-    for (int b = 0; b < 3; ++b) m[a][b] = _mm256_set1_pd(fr.inv_dirs.m[a][b]);
-    o[a] = _mm256_set1_pd(fr.origin[a]);
     hi[a] = _mm256_set1_pd(fr.grid.hi[a]);
     const std::int32_t na = std::int32_t(fr.grid.hi[a]) - 1;
     top[a] = _mm_set1_epi32(na - 1);
@@ -655,20 +690,11 @@ __attribute__((target("avx2"), noinline)) std::size_t brick_keys_avx2(const Fram
   const __m128i sh = _mm_cvtsi32_si128(shift);
   const std::size_t end = n & ~std::size_t(3);
   for (std::size_t i = 0; i < end; i += 4) {
-    // Twelve doubles x0 y0 z0 x1 | y1 z1 x2 y2 | z2 x3 y3 z3 to X, Y, Z.
-    const double* p = &x[i].x;
-    const __m256d a = _mm256_loadu_pd(p), b = _mm256_loadu_pd(p + 4), c = _mm256_loadu_pd(p + 8);
-    const __m256d m1 = _mm256_blend_pd(a, b, 0xc);            // x0 y0 x2 y2
-    const __m256d m2 = _mm256_permute2f128_pd(a, c, 0x21);    // z0 x1 z2 x3
-    const __m256d m3 = _mm256_blend_pd(b, c, 0xc);            // y1 z1 y3 z3
-    const __m256d d[3] = {_mm256_sub_pd(_mm256_shuffle_pd(m1, m2, 0xa), o[0]),
-                          _mm256_sub_pd(_mm256_shuffle_pd(m1, m3, 0x5), o[1]),
-                          _mm256_sub_pd(_mm256_shuffle_pd(m2, m3, 0xa), o[2])};
+    __m256d ts[3];
+    to_index4(x + i, ts);
     __m128i idx[3];
     for (int r = 0; r < 3; ++r) {
-      __m256d t = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(m[r][0], d[0]), _mm256_mul_pd(m[r][1], d[1])),
-                                _mm256_mul_pd(m[r][2], d[2]));
-      t = _mm256_min_pd(_mm256_max_pd(t, lo), hi[r]);  // NaN -> -2, as in the scalar pass
+      const __m256d t = _mm256_min_pd(_mm256_max_pd(ts[r], lo), hi[r]);  // NaN -> -2, as in the scalar pass
       const __m128i v = _mm256_cvttpd_epi32(t);
       idx[r] = _mm_min_epi32(_mm_max_epi32(v, zero), top[r]);
     }
@@ -680,6 +706,50 @@ __attribute__((target("avx2"), noinline)) std::size_t brick_keys_avx2(const Fram
     ++count[(std::uint32_t(_mm_extract_epi32(k, 1)) >> low) + 1];
     ++count[(std::uint32_t(_mm_extract_epi32(k, 2)) >> low) + 1];
     ++count[(std::uint32_t(_mm_extract_epi32(k, 3)) >> low) + 1];
+  }
+  return end;
+}
+
+// The scatter of sort_first_digit() four points at a time, each item one
+// AVX2 register (positions from IndexMap4: the same bits). Returns how many
+// points it did (a multiple of four); the caller does the rest.
+__attribute__((target("avx2"), noinline)) std::size_t scatter_avx2(const Frame& fr, const Vec3* x, std::size_t n,
+                                                                  int low, std::uint32_t* key, std::uint32_t* count,
+                                                                  const std::uint32_t* start, SortItem* pending,
+                                                                  SortItem* b) {
+  static_assert(offsetof(SortItem, in.idx) == 24 && offsetof(SortItem, in.low) == 28, "idx, low: the fourth double");
+  const IndexMap4 to_index4(fr);
+  const std::uint32_t low_mask = (std::uint32_t(1) << low) - 1;
+  const std::size_t end = n & ~std::size_t(3);
+  for (std::size_t i = 0; i < end; i += 4) {
+    __m256d t[3];
+    to_index4(x + i, t);
+    std::uint64_t tail[4];  // idx | low << 32, as the item's last 8 bytes
+    std::uint32_t d[4], j[4];
+    for (int q = 0; q < 4; ++q) {
+      const std::uint32_t k = key[i + q];
+      d[q] = k >> low;
+      j[q] = count[d[q]]++;
+      tail[q] = std::uint64_t(j[q]) | (std::uint64_t(k & low_mask) << 32);
+      key[i + q] = j[q];  // its place
+    }
+    const __m256d w = _mm256_castsi256_pd(_mm256_setr_epi64x(static_cast<long long>(tail[0]), static_cast<long long>(tail[1]),
+                                                              static_cast<long long>(tail[2]), static_cast<long long>(tail[3])));
+    const __m256d lo01 = _mm256_unpacklo_pd(t[0], t[1]), hi01 = _mm256_unpackhi_pd(t[0], t[1]);
+    const __m256d lo2w = _mm256_unpacklo_pd(t[2], w), hi2w = _mm256_unpackhi_pd(t[2], w);
+    const __m256d item[4] = {_mm256_permute2f128_pd(lo01, lo2w, 0x20), _mm256_permute2f128_pd(hi01, hi2w, 0x20),
+                             _mm256_permute2f128_pd(lo01, lo2w, 0x31), _mm256_permute2f128_pd(hi01, hi2w, 0x31)};
+    for (int q = 0; q < 4; ++q) {  // as the scalar scatter: whole lines streamed, pairs of items
+      double* slot = reinterpret_cast<double*>(b + j[q]);
+      if ((j[q] & 1) == 0) {
+        _mm256_store_pd(reinterpret_cast<double*>(pending + d[q]), item[q]);
+      } else if (j[q] - 1 >= start[d[q]]) {
+        _mm256_stream_pd(slot - 4, _mm256_load_pd(reinterpret_cast<const double*>(pending + d[q])));
+        _mm256_stream_pd(slot, item[q]);
+      } else {
+        _mm256_store_pd(slot, item[q]);
+      }
+    }
   }
   return end;
 }
@@ -734,7 +804,11 @@ __attribute__((noinline)) void sort_first_digit(const Frame& fr, const Vec3* x, 
   std::uint32_t start[std::size_t(1) << kHighBits];
   std::copy(count, count + (std::size_t(1) << plan.high), start);
   alignas(64) SortItem pending[std::size_t(1) << kHighBits];
-  for (std::size_t i = 0; i < n; ++i) {
+  first = 0;
+#if PM_FIELD_AVX2 && PM_STREAM_STORES
+  if (fr.avx2) first = scatter_avx2(fr, x, n, low, key, count, start, pending, b);
+#endif
+  for (std::size_t i = first; i < n; ++i) {
     const std::uint32_t k = key[i], d = k >> low, j = count[d]++;
     SortItem it;
     const Vec3 t = to_index(fr, x[i]);
