@@ -909,39 +909,10 @@ constexpr std::size_t kStreamOutputs = std::size_t(1) << 17;
 // Results back to the caller's order: point i's results are in
 // items[place[i]] (and hs[place[i]]). Reads the items (and Hessians) at
 // random, one line each, two for a Hessian, prefetched; writes the outputs
-// in order, for large batches with streaming stores.
-template <int Order>
-void gather_results(const SortItem* items, const Mat3* hs, const std::uint32_t* place, std::size_t n, double* f,
-                    Vec3* grad, Mat3* hess) {
-#if PM_STREAM_STORES && defined(__x86_64__)
-  if (n > kStreamOutputs) {
-    for (std::size_t i = 0; i < n; ++i) {
-#if defined(__GNUC__)
-      if (i + kFar < n) {
-        const std::size_t j = place[i + kFar];
-        __builtin_prefetch(items + j);
-        if constexpr (Order >= 2) {
-          __builtin_prefetch(hs + j);
-          __builtin_prefetch(reinterpret_cast<const char*>(hs + j) + sizeof(Mat3) - 1);
-        }
-      }
-#endif
-      const std::size_t j = place[i];
-      long long r[4];  // f, g: the bits, copied as they are
-      std::memcpy(r, &items[j].out, sizeof r);
-      _mm_stream_si64(reinterpret_cast<long long*>(f + i), r[0]);
-      if constexpr (Order >= 1) {
-        long long* gi = reinterpret_cast<long long*>(grad + i);
-        _mm_stream_si64(gi, r[1]);
-        _mm_stream_si64(gi + 1, r[2]);
-        _mm_stream_si64(gi + 2, r[3]);
-      }
-      if constexpr (Order >= 2) hess[i] = hs[j];
-    }
-    _mm_sfence();
-    return;
-  }
-#endif
+// in order, with streaming stores when kStream.
+template <int Order, bool kStream>
+void gather_loop(const SortItem* items, const Mat3* hs, const std::uint32_t* place, std::size_t n, double* f,
+                 Vec3* grad, Mat3* hess) {
   for (std::size_t i = 0; i < n; ++i) {
 #if defined(__GNUC__)
     if (i + kFar < n) {
@@ -954,11 +925,37 @@ void gather_results(const SortItem* items, const Mat3* hs, const std::uint32_t* 
     }
 #endif
     const std::size_t j = place[i];
-    const SortItem& it = items[j];
-    f[i] = it.out.f;
-    if constexpr (Order >= 1) grad[i] = Vec3(it.out.g[0], it.out.g[1], it.out.g[2]);
+    if constexpr (kStream) {
+#if PM_STREAM_STORES && defined(__x86_64__)
+      long long r[4];  // f, g: the bits, copied as they are
+      std::memcpy(r, &items[j].out, sizeof r);
+      _mm_stream_si64(reinterpret_cast<long long*>(f + i), r[0]);
+      if constexpr (Order >= 1) {
+        long long* gi = reinterpret_cast<long long*>(grad + i);
+        _mm_stream_si64(gi, r[1]);
+        _mm_stream_si64(gi + 1, r[2]);
+        _mm_stream_si64(gi + 2, r[3]);
+      }
+#endif
+    } else {
+      const SortItem& it = items[j];
+      f[i] = it.out.f;
+      if constexpr (Order >= 1) grad[i] = Vec3(it.out.g[0], it.out.g[1], it.out.g[2]);
+    }
     if constexpr (Order >= 2) hess[i] = hs[j];
   }
+#if PM_STREAM_STORES && defined(__x86_64__)
+  if constexpr (kStream) _mm_sfence();
+#endif
+}
+
+template <int Order>
+void gather_results(const SortItem* items, const Mat3* hs, const std::uint32_t* place, std::size_t n, double* f,
+                    Vec3* grad, Mat3* hess) {
+#if PM_STREAM_STORES && defined(__x86_64__)
+  if (n > kStreamOutputs) return gather_loop<Order, true>(items, hs, place, n, f, grad, hess);
+#endif
+  gather_loop<Order, false>(items, hs, place, n, f, grad, hess);
 }
 
 // One chunk of at most kSortChunk points: sort, evaluate, gather.
