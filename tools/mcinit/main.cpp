@@ -7,7 +7,7 @@
 #include "pm/cli/run_tool.h"
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
-#include "pm/ops/mcinit.h"
+#include "pm/volume/mcinit.h"
 
 int main(int argc, char** argv) {
   pm::Tool tool("mcinit",
