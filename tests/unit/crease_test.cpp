@@ -6,8 +6,8 @@
 #include <map>
 #include <utility>
 
-#include "pm/ops/meshstats.h"
-#include "pm/ops/meshstats_materials.h"
+#include "pm/mesh/meshstats.h"
+#include "pm/mesh/meshstats_materials.h"
 
 namespace pm {
 namespace {
