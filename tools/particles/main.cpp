@@ -55,6 +55,7 @@ void record_stats(const pm::ParticleResult& r) {
   st["counts"] = {{"particles", r.positions.size()}, {"iterations", r.iterations}, {"levels", r.levels},
                   {"splits", r.splits}, {"deletions", r.deletions}, {"dropped_init", r.dropped_init}, {"refilled", r.refilled}, {"list_builds", r.list_builds},
                   {"field_evaluations", r.field_evaluations}, {"particle_updates", r.particle_updates}};
+  st["engine"] = pm::engine_stats_json(r.engine);
   st["converged"] = r.converged;
   st["energy_final"] = r.energy_final;
   st["energy_ideal"] = r.energy_ideal;
@@ -176,6 +177,8 @@ int main(int argc, char** argv) {
       pm::write_mesh(to_mesh(r), output);
     }
     st["outputs"] = {output};
+    const std::string stuck = pm::engine_failure_summary(r.engine);
+    if (!stuck.empty()) pm::warn(stuck);
     if (!r.converged)
       pm::warn("not converged after " + std::to_string(r.iterations) + " iterations (--max-iters " +
                std::to_string(p.max_iters) + " per level); the result was written anyway");
