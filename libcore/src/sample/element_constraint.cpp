@@ -98,14 +98,6 @@ bool ElementConstraint::move(const Point& from, const Vec3& step, int steps, dou
   return project(std::size_t(from.s.element), from.s.u + du, steps, out, pr);
 }
 
-Vec3 ElementConstraint::split_offset(const Point& p, double u, double dist) const {
-  return tangent_offset(p.n, 2 * engine_constants::kPi * u, dist);
-}
-
-int ElementConstraint::children(const Point& p, double theta, double dist, Vec3* out) const {
-  return quad_children(p.n, theta, dist, out);
-}
-
 template class ParticleEngine<ElementConstraint>;
 
 }  // namespace pm

@@ -229,7 +229,7 @@ void ParticleEngine<C>::update(std::size_t i, std::size_t cell, std::vector<Cand
     ++ls.trials;
     Point q;
     pr.why = ProjectFailure::none;
-    bool ok = c_.move(P.p, vt * lambda, kReprojectSteps, P.spacing, q, pr);
+    bool ok = c_.move(P.p, vt * lambda, p_.reproject_steps, P.spacing, q, pr);
     if (!ok) {
       ++ls.trial_failures;
       last = pr.why == ProjectFailure::none ? ProjectFailure::no_convergence : pr.why;

@@ -53,18 +53,11 @@ class MultiRun {
  private:
   EngineParams engine_params() const {
     EngineParams e;
-    e.energy = p_.energy;
-    e.tolerance = p_.tolerance;
-    e.max_iters = p_.max_iters;
-    e.population_interval = p_.population_interval;
-    e.population_tolerance = p_.population_tolerance;
-    e.seed = p_.seed;
-    e.progress = p_.progress;
+    copy_relax_params(p_, e);
     e.sizing_mode = true;
     e.sizing = sizing_;
     e.spacing = p_.spacing;
     e.keep_covered = true;
-    e.settled_move = p_.settled_move;
     return e;
   }
   double spacing_at(const Vec3& x) const {
@@ -158,6 +151,7 @@ std::size_t MultiRun::repair_junctions(Engine& e) {
       Point q;
       const std::int32_t cell = c_.cell_index(make_cell(mats));
       if (!c_.place(mid, c_.of_cell(cell), kPlaceSteps, hmin, q, pr)) return;
+      if (sizing_ && !sizing_->covers(q.x)) return;
       const double h = spacing_at(q.x);
       if (norm2(q.x - mid) >= kRepairLanding * kRepairLanding * hmin * hmin ||
           near_junction(q.x, kRepairClearance * h))
@@ -270,30 +264,22 @@ MultiParticleResult MultiRun::run(const std::vector<JunctionSeed>& seeds) {
   if (p_.surfaces && p_.repair_junctions) res.junction_repairs = repair_junctions(e);
 
   // Output, level by level, in a deterministic order (level, then bin order).
-  auto parts = e.particles();
-  std::stable_sort(parts.begin(), parts.end(), [&](const Engine::Particle& a, const Engine::Particle& b) {
-    return level_of(c_.cell(a.p)) < level_of(c_.cell(b.p));
-  });
+  e.stable_order([&](const Engine::Particle& q) { return level_of(c_.cell(q.p)); });
+  e.export_points(res.positions, res.normals, res.energy, res.spacing);
+  const auto& parts = e.particles();
   const std::size_t n = parts.size();
-  res.positions.resize(n);
-  res.normals.resize(n);
   res.junction.resize(n);
   res.labels.resize(n);
-  res.spacing.resize(n);
-  res.energy.resize(n);
   res.residual.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     const auto& q = parts[i];
     const JunctionCell& c = c_.cell(q.p);
-    res.positions[i] = q.p.x;
-    res.normals[i] = c.count == 2 ? q.p.n : Vec3{};
+    if (c.count != 2) res.normals[i] = Vec3{};
     res.junction[i] = c.count;
     std::array<int, 4> l{{-1, -1, -1, -1}};
     for (int k = 0; k < c.count; ++k) l[std::size_t(k)] = m_.labels[std::size_t(c.m[std::size_t(k)])];
-    std::sort(l.begin(), l.begin() + c.count);
+    std::sort(l.begin(), l.begin() + std::clamp(c.count, 0, 4));
     res.labels[i] = l;
-    res.spacing[i] = q.spacing;
-    res.energy[i] = q.energy;
     res.residual[i] = q.p.s.residual;
     res.max_residual = std::max(res.max_residual, q.p.s.residual);
   }
@@ -419,6 +405,8 @@ MultiParticleResult distribute_multi_particles(const MaterialSet& m, const std::
                      "); expected volumes covering the same box");
   if (!sizing && p.spacing > norm(dom.size()))
     throw UsageError("spacing " + engine_fmt(p.spacing) + " is larger than the domain's diagonal " + engine_fmt(norm(dom.size())));
+  if (p.reproject_steps < 1)
+    throw UsageError("reprojection steps must be >= 1, got " + std::to_string(p.reproject_steps));
   if (!(p.settled_move >= 0 && p.settled_move < 1))
     throw UsageError("settled move must be in [0, 1) spacings, got " + engine_fmt(p.settled_move));
   MultiRun run(m, dom, resolution, sizing, p);

@@ -84,20 +84,13 @@ class SurfaceRun {
  private:
   static EngineParams engine_params(const SizingField* sizing, const ParticleParams& p) {
     EngineParams e;
-    e.energy = p.energy;
-    e.tolerance = p.tolerance;
-    e.max_iters = p.max_iters;
-    e.population_interval = p.population_interval;
-    e.population_tolerance = p.population_tolerance;
+    copy_relax_params(p, e);
     e.population_control = p.population_control;
-    e.seed = p.seed;
-    e.progress = p.progress;
     e.sizing_mode = sizing != nullptr;
     e.sizing = sizing;
     e.spacing = p.spacing;
     e.density = p.density;
     e.alpha_cap = p.alpha_cap;
-    e.settled_move = p.settled_move;
     return e;
   }
   int coarse_levels(double base) const {
@@ -267,19 +260,11 @@ ParticleResult SurfaceRun::run(const std::vector<Vec3>& seeds) {
   const double e = e_.measure();
   const auto& parts = e_.particles();
   const std::size_t n = parts.size();
-  res.positions.resize(n);
-  res.normals.resize(n);
-  res.energy.resize(n);
-  res.spacing.resize(n);
+  e_.export_points(res.positions, res.normals, res.energy, res.spacing);
   res.curvature.resize(n);
   std::uint64_t nb = 0;
   double ideal = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const auto& q = parts[i];
-    res.positions[i] = q.p.x;
-    res.normals[i] = q.p.n;
-    res.energy[i] = q.energy;
-    res.spacing[i] = q.spacing;
+  for (const auto& q : parts) {
     nb += std::uint64_t(q.neighbours);
     ideal += e_.ideal_energy(q);
   }
@@ -329,6 +314,8 @@ ParticleResult distribute_particles(const ScalarField& field, const std::vector<
   if (params.population_interval < 1)
     throw UsageError("population interval must be >= 1, got " + std::to_string(params.population_interval));
   if (seeds.empty() && params.init_count == 0) throw UsageError("init count must be >= 1 when no seeds are given");
+  if (params.reproject_steps < 1)
+    throw UsageError("reprojection steps must be >= 1, got " + std::to_string(params.reproject_steps));
   if (!(params.seed_thinning >= 0 && params.seed_thinning < 2))
     throw UsageError("seed thinning must be in [0, 2) spacings, got " + engine_fmt(params.seed_thinning));
   if (!(params.settled_move >= 0 && params.settled_move < 1))

@@ -63,14 +63,6 @@ bool SurfaceConstraint::place(const Vec3& x0, const Point&, int steps, double ma
   return pr.fail(ProjectFailure::no_convergence);
 }
 
-Vec3 SurfaceConstraint::split_offset(const Point& p, double u, double dist) const {
-  return tangent_offset(p.n, 2 * engine_constants::kPi * u, dist);
-}
-
-int SurfaceConstraint::children(const Point& p, double theta, double dist, Vec3* out) const {
-  return quad_children(p.n, theta, dist, out);
-}
-
 template class ParticleEngine<SurfaceConstraint>;
 
 }  // namespace pm

@@ -39,7 +39,7 @@ class TrilinearElements : public ElementMap {
   std::vector<std::array<Vec3, 8>> corners_;
 };
 
-class ElementConstraint {
+class ElementConstraint : public SurfaceRules {
  public:
   struct State {
     std::int32_t element = 0;
@@ -58,16 +58,6 @@ class ElementConstraint {
   /// World x: invert φ of like's element by Newton from like's u, then project.
   bool place(const Vec3& x, const Point& like, int steps, double max_step, Point& out, Probe& pr) const;
   bool move(const Point& from, const Vec3& step, int steps, double max_step, Point& out, Probe& pr) const;
-  Vec3 tangent(const Point& p, const Vec3& v) const { return v - p.n * dot(p.n, v); }
-  int dimension(const Point&) const { return 2; }
-  double ideal_neighbours(const Point&) const { return 6; }
-  double split_below(const Point&) const { return 0.35; }
-  double delete_above(const Point&) const { return 1.75; }
-  Vec3 split_offset(const Point& p, double u, double dist) const;
-  int children(const Point& p, double theta, double dist, Vec3* out) const;
-  bool sees(const Point&, const Point&, bool) const { return true; }
-  bool weighted(const Point&) const { return true; }
-  bool same_cell(const Point&, const Point&) const { return true; }
   double curvedness(const Point&) const { return 0; }
 
  private:

@@ -220,6 +220,45 @@ struct EngineParams {
   /// that either, re-checking it every `settled_recheck` sweeps (0 = off).
   double settled_move = 0;
   int settled_recheck = 8;
+  int reproject_steps = engine_constants::kReprojectSteps;  ///< constraint steps after a tangent move
+};
+
+/// Copy the relaxation settings every configuration's params struct names
+/// alike (energy, tolerance, max_iters, population_interval,
+/// population_tolerance, seed, progress, settled_move, reproject_steps).
+template <class P>
+void copy_relax_params(const P& p, EngineParams& e) {
+  e.energy = p.energy;
+  e.tolerance = p.tolerance;
+  e.max_iters = p.max_iters;
+  e.population_interval = p.population_interval;
+  e.population_tolerance = p.population_tolerance;
+  e.seed = p.seed;
+  e.progress = p.progress;
+  e.settled_move = p.settled_move;
+  e.reproject_steps = p.reproject_steps;
+}
+
+/// The rules of particles on a 2-manifold in world space (hexagonal
+/// packing): a mix-in for constraints whose SamplePoint normal is the unit
+/// surface normal.
+struct SurfaceRules {
+  template <class P> int dimension(const P&) const { return 2; }
+  template <class P> double ideal_neighbours(const P&) const { return 6; }
+  template <class P> double split_below(const P&) const { return 0.35; }
+  template <class P> double delete_above(const P&) const { return 1.75; }
+  /// A point `dist` away in the tangent plane at angle 2πu.
+  template <class P> Vec3 split_offset(const P& p, double u, double dist) const {
+    return tangent_offset(p.n, 2 * engine_constants::kPi * u, dist);
+  }
+  /// Coarse-to-fine: the 4 quad_children of the tangent plane.
+  template <class P> int children(const P& p, double theta, double dist, Vec3* out) const {
+    return quad_children(p.n, theta, dist, out);
+  }
+  template <class P> Vec3 tangent(const P& p, const Vec3& v) const { return v - p.n * dot(p.n, v); }
+  template <class P> bool sees(const P&, const P&, bool) const { return true; }
+  template <class P> bool weighted(const P&) const { return true; }
+  template <class P> bool same_cell(const P&, const P&) const { return true; }
 };
 
 /// Distance factors for two-type quad packing (Meyer 2008, Chapter 7):
@@ -341,6 +380,28 @@ class ParticleEngine {
   double measure();
 
   // --- access -----------------------------------------------------------
+  /// Reorder the particles stably by key(particle) (ascending).
+  template <class Key>
+  void stable_order(Key key) {
+    std::stable_sort(parts_.begin(), parts_.end(),
+                     [&](const Particle& a, const Particle& b) { return key(a) < key(b); });
+  }
+  /// Positions, normals, energies and local spacings (#N each) in the
+  /// current order.
+  void export_points(std::vector<Vec3>& x, std::vector<Vec3>& n, std::vector<double>& energy,
+                     std::vector<double>& spacing) const {
+    const std::size_t count = parts_.size();
+    x.resize(count);
+    n.resize(count);
+    energy.resize(count);
+    spacing.resize(count);
+    for (std::size_t i = 0; i < count; ++i) {
+      x[i] = parts_[i].p.x;
+      n[i] = parts_[i].p.n;
+      energy[i] = parts_[i].energy;
+      spacing[i] = parts_[i].spacing;
+    }
+  }
   std::vector<Particle>& particles() { return parts_; }
   const std::vector<Particle>& particles() const { return parts_; }
   const EngineStats& stats() const { return st_; }

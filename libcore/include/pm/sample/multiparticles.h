@@ -85,6 +85,7 @@ struct MultiParticleParams {
   std::uint64_t seed = 1;
   bool progress = true;
   double settled_move = 0;  ///< settled-particle skipping, see ParticleParams::settled_move (0 = off)
+  int reproject_steps = engine_constants::kReprojectSteps;  ///< (Gauss-)Newton steps after a tangent move (>= 1)
 };
 
 /// Per-level counts (level 0: quadruple points, 1: triple curves, 2: surfaces).

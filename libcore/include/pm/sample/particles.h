@@ -69,6 +69,7 @@ struct ParticleParams {
   /// seed are dropped before relaxing (0 = keep all; every seed still
   /// anchors its component).
   double seed_thinning = 0;
+  int reproject_steps = engine_constants::kReprojectSteps;  ///< (Gauss-)Newton steps after a tangent move (>= 1)
 };
 
 struct ParticleResult {

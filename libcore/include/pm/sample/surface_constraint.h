@@ -11,7 +11,7 @@
 
 namespace pm {
 
-class SurfaceConstraint {
+class SurfaceConstraint : public SurfaceRules {
  public:
   struct State {
     Vec3 grad;              ///< ∇F at the point, world units
@@ -33,18 +33,6 @@ class SurfaceConstraint {
   Vec3 tangent(const Point& p, const Vec3& v) const {
     return v - p.s.grad * (dot(p.s.grad, v) / norm2(p.s.grad));
   }
-  int dimension(const Point&) const { return 2; }
-  double ideal_neighbours(const Point&) const { return 6; }
-  double split_below(const Point&) const { return 0.35; }
-  double delete_above(const Point&) const { return 1.75; }
-  /// A point `dist` away in the tangent plane, at angle 2πu.
-  Vec3 split_offset(const Point& p, double u, double dist) const;
-  /// Coarse-to-fine: 4 children at ±a ± b, a and b orthogonal tangents of
-  /// length `dist` turned by theta.
-  int children(const Point& p, double theta, double dist, Vec3* out) const;
-  bool sees(const Point&, const Point&, bool) const { return true; }
-  bool weighted(const Point&) const { return true; }
-  bool same_cell(const Point&, const Point&) const { return true; }
   double curvedness(const Point& p) const { return p.s.curvedness; }
 
   const ScalarField& field() const { return field_; }
