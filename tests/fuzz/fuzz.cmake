@@ -33,7 +33,7 @@ add_library(pmfuzzcore STATIC
   libcore/src/field/sizing.cpp
   libcore/src/field/hp_field.cpp
   libcore/src/baseline/lattice_iso.cpp
-  libcore/src/ops/particles.cpp
+  libcore/src/sample/particles.cpp
   tests/fuzz/fuzz_util.cpp
 )
 target_include_directories(pmfuzzcore PUBLIC libcore/include tests/fuzz ${NIFTI_INCLUDE_DIR}/nifti

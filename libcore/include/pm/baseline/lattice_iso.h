@@ -9,7 +9,7 @@
 #include <cstdint>
 
 #include "pm/field/hp_field.h"
-#include "pm/io/mesh.h"
+#include "pm/base/mesh.h"
 
 namespace pm {
 
