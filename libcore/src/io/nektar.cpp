@@ -771,7 +771,7 @@ int NektarField::variable(const std::string& name) const {
 namespace {
 
 // "0-3,7,9-12" -> ids.
-std::vector<int> parse_ids(const std::string& s, const std::string& what) {
+std::vector<int> parse_ids(const std::string& s, const std::string& what, std::size_t max_ids) {
   std::vector<int> out;
   for (const auto& part : split(s, ',')) {
     if (part.empty()) throw InputError(what + ": ID=" + quote(s) + " has an empty entry; expected e.g. \"0-3,7\"");
@@ -785,9 +785,10 @@ std::vector<int> parse_ids(const std::string& s, const std::string& what) {
     }
     if (a < 0 || b < a || b > std::numeric_limits<int>::max())
       throw InputError(what + ": ID range " + quote(part) + " is empty or out of range");
-    if (b - a >= (1LL << 26)) throw InputError(what + ": ID range " + quote(part) + " is implausibly long");
+    if (static_cast<unsigned long long>(b - a) >= max_ids || out.size() + static_cast<std::size_t>(b - a) >= max_ids)
+      throw InputError(what + ": ID lists more than " + int_str(max_ids) +
+                       " elements, more than its data can hold (at least 4 coefficients per element and field)");
     for (long long i = a; i <= b; ++i) out.push_back(static_cast<int>(i));
-    if (out.size() > (std::size_t(1) << 26)) throw InputError(what + ": ID lists too many elements");
   }
   return out;
 }
@@ -845,8 +846,10 @@ NektarField read_nektar_field(const std::string& path) {
         for (const auto& x : want) exp += (exp.empty() ? "" : ",") + x;
         throw InputError(w + ": BASIS=" + quote(basis) + " for a " + shape + " is not supported; expected " + quote(exp));
       }
-      // IDs
-      const std::vector<int> ids = parse_ids(attr("ID"), w);
+      // data, then IDs (bounded by what the data can hold)
+      const std::string id_text = attr("ID");
+      const std::vector<unsigned char> bytes = nektar_b64z_decode(element_text(e), w + ": data");
+      const std::vector<int> ids = parse_ids(id_text, w, bytes.size() / (8 * 4 * names.size()) + 1);
       // NUMMODESPERDIR
       const std::string nm = attr("NUMMODESPERDIR");
       bool uni;
@@ -867,8 +870,6 @@ NektarField read_nektar_field(const std::string& path) {
       if (modes.size() != need)
         throw InputError(w + ": NUMMODESPERDIR has " + int_str(modes.size()) + " numbers; expected " + int_str(need) +
                          (uni ? "" : " (3 per element)"));
-      // data
-      const std::vector<unsigned char> bytes = nektar_b64z_decode(element_text(e), w + ": data");
       std::size_t per_field = 0;
       std::vector<std::array<int, 3>> em(ids.size());
       for (std::size_t k = 0; k < ids.size(); ++k) {
