@@ -349,6 +349,20 @@ TEST(NektarBadInput, CurvedElementsReadAndRefusedByName) {
   expect_input_error([&] { read_nektar_mesh(q); }, q, "6 numbers; expected 3 x NUMPOINTS = 9");
 }
 
+TEST(NektarBadInput, DegenerateElementRefusedByHpField) {
+  GenMesh g;
+  const int a = g.vertex({0, 0, 0}), b = g.vertex({1, 0, 0}), c = g.vertex({0, 1, 0}), d = g.vertex({1, 1, 0});
+  g.add_tet({a, b, c, d});  // flat
+  const std::string p = write("flat.xml", test::mesh_xml(g, false));
+  GenBlock blk;
+  blk.shape = "Tetrahedron";
+  blk.basis = "Modified_A,Modified_B,Modified_C";
+  blk.modes = "UNIORDER:2,2,2";
+  blk.coeffs.assign(4, 1.0);
+  const NektarField f = read_nektar_field(write("flat.fld", test::field_xml({blk})));
+  expect_input_error([&] { HpField(read_nektar_mesh(p), f, "u"); }, p, "tetrahedron 0 is degenerate (Jacobian determinant 0)");
+}
+
 TEST(NektarBadInput, MissingFileAndFolder) {
   EXPECT_THROW(read_nektar_mesh(test::temp_dir() + "/none.xml"), IoError);
   EXPECT_THROW(read_nektar_field(test::temp_dir()), IoError);

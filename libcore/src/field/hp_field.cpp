@@ -370,7 +370,7 @@ HpField::HpField(const NektarMesh& mesh, const NektarField& field, const std::st
       const double scale = norm(e.v[1] - e.v[0]) * norm(e.v[2] - e.v[0]) * norm(e.v[3] - e.v[0]);
       if (!(std::fabs(det) > 1e-12 * scale / 8))
         throw InputError(where + ": tetrahedron " + std::to_string(e.id) + " is degenerate (Jacobian determinant " +
-                         std::to_string(det) + ")");
+                         format_number(det) + ")");
       e.K = inverse(e.J);
     } else {
       // Check the trilinear map at the corners and the centre.
@@ -380,8 +380,8 @@ HpField::HpField(const NektarMesh& mesh, const NektarField& field, const std::st
         const double sz = norm(e.box.size());
         if (!(std::fabs(det) > 1e-12 * sz * sz * sz))
           throw InputError(where + ": hexahedron " + std::to_string(e.id) +
-                           " is degenerate or inverted (Jacobian determinant " + std::to_string(det) + " at xi = (" +
-                           std::to_string(xi.x) + ", " + std::to_string(xi.y) + ", " + std::to_string(xi.z) + "))");
+                           " is degenerate or inverted (Jacobian determinant " + format_number(det) + " at xi = (" +
+                           format_number(xi.x) + ", " + format_number(xi.y) + ", " + format_number(xi.z) + "))");
       }
     }
     id_to_index_[e.id] = static_cast<int>(i);

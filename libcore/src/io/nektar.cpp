@@ -893,7 +893,7 @@ NektarField read_nektar_field(const std::string& path) {
           const std::size_t f = i / per_field;
           std::size_t r = i % per_field, k = 0;
           while (r >= static_cast<std::size_t>(nektar_num_coeffs(s, em[k]))) r -= nektar_num_coeffs(s, em[k++]);
-          throw InputError(w + ": non-finite coefficient (" + std::to_string(vals[i]) + ") of field " +
+          throw InputError(w + ": non-finite coefficient (" + format_number(vals[i]) + ") of field " +
                            quote(names[f]) + " in element " + int_str(ids[k]) + ", mode " + int_str(r));
         }
       std::size_t offset = 0;
