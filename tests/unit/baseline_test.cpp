@@ -1,11 +1,11 @@
-#include "pm/ops/baseline.h"
+#include "pm/baseline/baseline.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
 #include "pm/base/error.h"
-#include "pm/ops/tetlabel.h"
+#include "pm/mesh/tetlabel.h"
 
 namespace pm {
 namespace {

@@ -9,8 +9,8 @@
 #include "pm/cli/run_tool.h"
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
-#include "pm/ops/baseline.h"
-#include "pm/ops/tetlabel.h"
+#include "pm/baseline/baseline.h"
+#include "pm/mesh/tetlabel.h"
 #include "pm/cli/frame_option.h"
 #include "pm/io/output_path.h"
 

@@ -7,7 +7,7 @@
 #include "pm/cli/run_tool.h"
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
-#include "pm/ops/mcinit.h"
+#include "pm/volume/mcinit.h"
 #include "pm/cli/frame_option.h"
 #include "pm/io/output_path.h"
 

@@ -11,7 +11,7 @@
 #include "pm/field/distance.h"
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
-#include "pm/ops/medialaxis.h"
+#include "pm/volume/medialaxis.h"
 #include "pm/cli/frame_option.h"
 #include "pm/io/output_path.h"
 

@@ -11,7 +11,7 @@
 
 #include "pm/field/materials.h"
 #include "pm/io/mesh.h"
-#include "pm/ops/tetlabel.h"
+#include "pm/mesh/tetlabel.h"
 
 namespace pm {
 

@@ -1,4 +1,4 @@
-#include "pm/ops/multiparticles.h"
+#include "pm/sample/multiparticles.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
@@ -16,7 +16,7 @@
 #include "pm/base/error.h"
 #include "pm/base/log.h"
 #include "pm/base/parallel.h"
-#include "pm/ops/mcinit.h"
+#include "pm/volume/mcinit.h"
 
 // Binning: the same invariant as particles.cpp. Bins are rebuilt before each
 // sweep; a particle moves at most once per sweep and by at most its spacing

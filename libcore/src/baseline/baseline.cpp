@@ -1,6 +1,6 @@
 // Marching-cubes baseline (OpenVDB) and the label-map triple lines used by
 // the CGAL baseline (baseline_cgal.cpp holds every CGAL include).
-#include "pm/ops/baseline.h"
+#include "pm/baseline/baseline.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/Dense.h>

@@ -1,4 +1,4 @@
-#include "pm/ops/gradlimit.h"
+#include "pm/volume/gradlimit.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>

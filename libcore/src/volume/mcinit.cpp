@@ -1,4 +1,4 @@
-#include "pm/ops/mcinit.h"
+#include "pm/volume/mcinit.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -14,7 +14,7 @@
 #include "pm/base/error.h"
 #include "pm/base/parallel.h"
 #include "pm/field/kernels.h"
-#include "pm/ops/labels.h"
+#include "pm/volume/labels.h"
 
 namespace pm {
 namespace {

@@ -1,4 +1,4 @@
-#include "pm/ops/medialaxis.h"
+#include "pm/volume/medialaxis.h"
 
 #include <tbb/parallel_for.h>
 

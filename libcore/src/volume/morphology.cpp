@@ -1,4 +1,4 @@
-#include "pm/ops/morphology.h"
+#include "pm/volume/morphology.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -13,7 +13,7 @@
 
 #include "pm/base/error.h"
 #include "pm/base/parallel.h"
-#include "pm/ops/labels.h"
+#include "pm/volume/labels.h"
 
 namespace pm {
 

@@ -9,7 +9,7 @@
 
 #include "pm/base/stats.h"
 #include "pm/io/mesh.h"
-#include "pm/ops/meshstats.h"
+#include "pm/mesh/meshstats.h"
 
 namespace pm {
 

@@ -1,4 +1,4 @@
-#include "pm/ops/sizingfield.h"
+#include "pm/volume/sizingfield.h"
 
 #include <tbb/parallel_for.h>
 
@@ -11,7 +11,7 @@
 #include "pm/base/parallel.h"
 #include "pm/field/curvature.h"
 #include "pm/field/volume_field.h"
-#include "pm/ops/medialaxis.h"
+#include "pm/volume/medialaxis.h"
 
 namespace pm {
 namespace {

@@ -9,7 +9,7 @@
 #include "pm/field/field.h"
 #include "pm/field/sizing.h"
 #include "pm/io/mesh.h"
-#include "pm/ops/tetlabel.h"
+#include "pm/mesh/topology.h"
 
 namespace pm {
 

@@ -1,4 +1,4 @@
-#include "pm/ops/particles.h"
+#include "pm/sample/particles.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>

@@ -4,7 +4,7 @@
 // point (0-cell), then particle chains along every triple curve (1-cells),
 // then particles on every interface surface between two materials
 // (2-cells). Each level is relaxed with the particle energy of SPEC §3
-// (pm/ops/particles.h) while the lower levels stay fixed and repel it: a
+// (pm/sample/particles.h) while the lower levels stay fixed and repel it: a
 // particle sees the particles of its own cell and the fixed particles of
 // every cell that bounds it (whose materials include its own).
 //
@@ -36,7 +36,7 @@
 #include "pm/field/materials.h"
 #include "pm/field/sizing.h"
 #include "pm/io/mesh.h"
-#include "pm/ops/particles.h"
+#include "pm/sample/particles.h"
 
 namespace pm {
 

@@ -1,4 +1,4 @@
-#include "pm/ops/render.h"
+#include "pm/render/render.h"
 
 #include <algorithm>
 #include <cmath>

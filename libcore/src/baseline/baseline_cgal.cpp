@@ -15,7 +15,7 @@
 
 #include "pm/base/error.h"
 #include "pm/base/log.h"
-#include "pm/ops/baseline.h"
+#include "pm/baseline/baseline.h"
 
 namespace pm {
 

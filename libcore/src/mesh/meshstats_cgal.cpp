@@ -7,7 +7,7 @@
 
 #include <iterator>
 
-#include "pm/ops/meshstats.h"
+#include "pm/mesh/meshstats.h"
 
 namespace pm {
 

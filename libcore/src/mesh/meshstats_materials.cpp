@@ -1,4 +1,4 @@
-#include "pm/ops/meshstats_materials.h"
+#include "pm/mesh/meshstats_materials.h"
 
 #include <algorithm>
 #include <set>

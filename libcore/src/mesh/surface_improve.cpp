@@ -1,4 +1,4 @@
-#include "pm/ops/surface_improve.h"
+#include "pm/mesh/surface_improve.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -17,7 +17,7 @@
 #include "pm/base/error.h"
 #include "pm/base/parallel.h"
 #include "pm/field/junctions.h"
-#include "pm/ops/meshstats.h"
+#include "pm/mesh/meshstats.h"
 
 namespace pm {
 

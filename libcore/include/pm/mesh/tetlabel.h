@@ -10,6 +10,7 @@
 
 #include "pm/base/vec.h"
 #include "pm/io/mesh.h"
+#include "pm/mesh/topology.h"
 #include "pm/io/tet_mesh.h"
 
 namespace pm {
@@ -85,16 +86,5 @@ Mesh material_surface(const TetMesh& tm, int label, int outside_label);
 /// interface triangles, oriented from label_a into label_b) with their labels.
 LabelledTets labelled_tets(const TetMesh& tm, int outside_label);
 
-/// Topology of a triangle mesh: boundary and non-manifold edges, connected
-/// components, Euler characteristic and genus (for closed orientable manifolds).
-struct MeshTopology {
-  std::size_t vertices = 0, edges = 0, faces = 0;
-  std::size_t boundary_edges = 0, nonmanifold_edges = 0, nonmanifold_vertices = 0;
-  std::size_t components = 0;
-  long euler = 0;  ///< V - E + F over the used vertices
-  long genus = 0;  ///< (2·components - euler) / 2 when closed and manifold, else -1
-  bool closed_manifold() const { return boundary_edges == 0 && nonmanifold_edges == 0 && nonmanifold_vertices == 0; }
-};
-MeshTopology mesh_topology(const Mesh& m);
 
 }  // namespace pm

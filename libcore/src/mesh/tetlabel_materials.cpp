@@ -1,4 +1,4 @@
-#include "pm/ops/tetlabel_materials.h"
+#include "pm/mesh/tetlabel_materials.h"
 
 #include <algorithm>
 #include <set>
