@@ -165,11 +165,14 @@ void xml_ints(std::string& out, const char* type, const std::string& name, const
   xml_close_array(out);
 }
 
-std::string xml_head(const char* type, WorldFrame frame) {
+// `space_field`: the FieldData array SPACE that Slicer reads. meshio's VTU
+// reader refuses String arrays (ReadError "Illegal data type"), so .vtu files
+// state the frame in the comment only.
+std::string xml_head(const char* type, WorldFrame frame, bool space_field) {
   return std::string("<?xml version=\"1.0\"?>\n<!-- written by particlemesh " PM_VERSION ", frame ") +
-         frame_name(frame) + " -->\n<VTKFile type=\"" + type +
+         frame_name(frame) + " SPACE=" + frame_name(frame) + " -->\n<VTKFile type=\"" + type +
          "\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n  <" + type + ">\n" +
-         xml_space_field(frame);
+         (space_field ? xml_space_field(frame) : std::string());
 }
 
 void xml_point_data(std::string& out, const Mesh& m) {
@@ -475,7 +478,7 @@ void write_vtp(const Mesh& m, const std::string& path, WorldFrame frame) {
   m.validate(where);
   check_ply_names(m, where);
   const bool points_only = m.faces.empty();
-  std::string out = xml_head("PolyData", frame);
+  std::string out = xml_head("PolyData", frame, true);
   out += "    <Piece NumberOfPoints=\"" + std::to_string(m.vertices.size()) + "\" NumberOfVerts=\"" +
          std::to_string(points_only ? m.vertices.size() : 0) +
          "\" NumberOfLines=\"0\" NumberOfStrips=\"0\" NumberOfPolys=\"" + std::to_string(m.faces.size()) + "\">\n";
@@ -535,7 +538,7 @@ void write_vtk_tets(const LabelledTets& t, const std::string& path, bool binary,
 void write_vtu(const LabelledTets& t, const std::string& path, WorldFrame frame) {
   const std::string where = "write_vtu: " + quote(path);
   t.validate(where);
-  std::string out = xml_head("UnstructuredGrid", frame);
+  std::string out = xml_head("UnstructuredGrid", frame, false);
   out += "    <Piece NumberOfPoints=\"" + std::to_string(t.vertices.size()) + "\" NumberOfCells=\"" +
          std::to_string(t.tets.size()) + "\">\n";
   out += "      <CellData Scalars=\"material\">\n";

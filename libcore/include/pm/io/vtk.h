@@ -5,7 +5,10 @@
 // Face integer properties become Int32 cell data, vertex scalars Float64
 // point data, normals the point data `Normals`, so viewers colour by them.
 // The frame is stated the way Slicer reads it: `SPACE=LPS` (or RAS) in the
-// legacy header line, a string field array `SPACE` in the XML files.
+// legacy header line, a string field array `SPACE` in `.vtp`. `.vtu` states it
+// in an XML comment only: meshio's VTU reader refuses string arrays, and
+// Slicer takes a file without the field as LPS (right for the default frame;
+// for RAS tetrahedra in Slicer, write `.vtk`).
 // Writers write to `path` directly (no atomic rename: write_mesh and
 // write_tet_mesh do that) and take coordinates as given.
 #include <string>
