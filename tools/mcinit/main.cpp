@@ -4,6 +4,7 @@
 #include "pm/base/error.h"
 #include "pm/base/log.h"
 #include "pm/base/stats.h"
+#include "pm/cli/field_options.h"
 #include "pm/cli/run_tool.h"
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
@@ -26,9 +27,7 @@ int main(int argc, char** argv) {
   tool.app.add_option("input", in, "Input volume (grey values, distance field, mask; label map with --junctions)")
       ->required();
   tool.app.add_option("output", out, "Seed points (.ply .vtp .vtk: vertices, normals, scalars), world units")->required();
-  tool.app.add_option("--kernel", kernel, "Reconstruction: bspline, catmull-rom, or mix (value Catmull-Rom, "
-                                          "derivatives B-spline)")
-      ->capture_default_str();
+  pm::add_kernel_option(tool.app, kernel);
   tool.app.add_option("--decimate", p.decimate, "Keep about one seed per K^3 cells (per component / label set)")
       ->capture_default_str();
   tool.app.add_option("--project-steps", p.project_steps, "Newton steps onto the isosurface (0 = raw edge points)")
@@ -41,14 +40,7 @@ int main(int argc, char** argv) {
     pm::check_output_path(out, pm::OutputKind::points, "output");
     auto& st = pm::stats();
     if (p.decimate < 1) throw pm::UsageError("--decimate " + std::to_string(p.decimate) + "; expected >= 1");
-    if (kernel == "bspline")
-      p.field = {};
-    else if (kernel == "catmull-rom")
-      p.field = {pm::KernelType::catmull_rom, pm::KernelType::catmull_rom};
-    else if (kernel == "mix")
-      p.field = pm::VolumeFieldParams::chapter5_mix();
-    else
-      throw pm::UsageError("--kernel \"" + kernel + "\"; expected bspline, catmull-rom or mix");
+    p.field = pm::kernel_params(kernel);
     if (junctions == (iso->count() > 0))
       throw pm::UsageError(junctions ? "--junctions takes no --iso" : "--iso C is required (or --junctions)");
     st["inputs"] = {in};

@@ -15,15 +15,6 @@
 #include "pm/cli/frame_option.h"
 #include "pm/io/output_path.h"
 
-namespace {
-// A number as a user typed it (no trailing zeros), for messages.
-std::string num(double v) {
-  std::ostringstream s;
-  s << v;
-  return s.str();
-}
-}  // namespace
-
 int main(int argc, char** argv) {
   pm::Tool tool("medialaxis",
                 "Find medial-axis points of the surface d = 0 of a signed distance volume (float, negative "
@@ -64,7 +55,7 @@ int main(int argc, char** argv) {
     p.outside = side != "inside";
     st["parameters"] = {{"cos_alpha", p.cos_alpha}, {"side", side}, {"foot_iterations", p.foot_iterations}};
     if (!(p.cos_alpha > -1 && p.cos_alpha < 1))
-      throw pm::UsageError("--cos-alpha " + num(p.cos_alpha) + "; expected a value in (-1, 1)");
+      throw pm::UsageError("--cos-alpha " + pm::format_number(p.cos_alpha) + "; expected a value in (-1, 1)");
     if (p.foot_iterations < 0)
       throw pm::UsageError("--foot-iterations " + std::to_string(p.foot_iterations) + "; expected >= 0");
     if (!sdf_out.empty() && std::isnan(iso)) throw pm::UsageError("--sdf-out needs --iso");
