@@ -4,10 +4,13 @@
 #include "pm/base/error.h"
 #include "pm/base/log.h"
 #include "pm/base/stats.h"
+#include "pm/cli/field_options.h"
 #include "pm/cli/run_tool.h"
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
 #include "pm/volume/mcinit.h"
+#include "pm/cli/frame_option.h"
+#include "pm/io/output_path.h"
 
 int main(int argc, char** argv) {
   pm::Tool tool("mcinit",
@@ -23,29 +26,21 @@ int main(int argc, char** argv) {
   auto* iso = tool.app.add_option("--iso", p.iso, "Isovalue, in voxel value units (F < iso inside)");
   tool.app.add_option("input", in, "Input volume (grey values, distance field, mask; label map with --junctions)")
       ->required();
-  tool.app.add_option("output", out, "Seed points, PLY (vertices, normals, scalars)")->required();
-  tool.app.add_option("--kernel", kernel, "Reconstruction: bspline, catmull-rom, or mix (value Catmull-Rom, "
-                                          "derivatives B-spline)")
-      ->capture_default_str();
+  tool.app.add_option("output", out, "Seed points (.ply .vtp .vtk: vertices, normals, scalars), world units")->required();
+  pm::add_kernel_option(tool.app, kernel);
   tool.app.add_option("--decimate", p.decimate, "Keep about one seed per K^3 cells (per component / label set)")
       ->capture_default_str();
   tool.app.add_option("--project-steps", p.project_steps, "Newton steps onto the isosurface (0 = raw edge points)")
       ->capture_default_str();
   tool.app.add_flag("--junctions", junctions, "Label map: seeds on material boundaries, triple lines, quadruple points");
 
+  pm::WorldFrame frame = pm::WorldFrame::lps;
+  pm::add_frame_option(tool.app, frame);
   return tool.run(argc, argv, [&] {
+    pm::check_output_path(out, pm::OutputKind::points, "output");
     auto& st = pm::stats();
-    if (out.size() < 4 || out.substr(out.size() - 4) != ".ply")
-      throw pm::UsageError("output " + pm::quote(out) + ": expected a .ply file");
     if (p.decimate < 1) throw pm::UsageError("--decimate " + std::to_string(p.decimate) + "; expected >= 1");
-    if (kernel == "bspline")
-      p.field = {};
-    else if (kernel == "catmull-rom")
-      p.field = {pm::KernelType::catmull_rom, pm::KernelType::catmull_rom};
-    else if (kernel == "mix")
-      p.field = pm::VolumeFieldParams::chapter5_mix();
-    else
-      throw pm::UsageError("--kernel \"" + kernel + "\"; expected bspline, catmull-rom or mix");
+    p.field = pm::kernel_params(kernel);
     if (junctions == (iso->count() > 0))
       throw pm::UsageError(junctions ? "--junctions takes no --iso" : "--iso C is required (or --junctions)");
     st["inputs"] = {in};
@@ -72,7 +67,7 @@ int main(int argc, char** argv) {
     } catch (const pm::InputError& e) {
       throw pm::InputError(pm::quote(in) + ": " + e.what());
     }
-    pm::write_mesh(seeds, out);
+    pm::write_mesh(seeds, out, {true, frame});
     st["outputs"] = {out};
   });
 }

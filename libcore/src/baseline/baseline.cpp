@@ -12,6 +12,7 @@
 #include <unordered_map>
 
 #include "pm/base/error.h"
+#include "pm/base/log.h"
 #include "pm/io/vdb.h"
 
 namespace pm {
@@ -42,6 +43,52 @@ double facet_size_for_vertices(double area, std::size_t vertices) {
                      std::to_string(area) + " and " + std::to_string(vertices) + " vertices");
   const double edge = std::sqrt(2 * area / (std::sqrt(3.0) * double(vertices)));
   return edge / 1.2;
+}
+
+double label_interface_area(const Volume& v, const std::string& what) {
+  const Dims d = v.dims();
+  const double sp[3] = {v.geometry().spacing(0), v.geometry().spacing(1), v.geometry().spacing(2)};
+  const std::size_t step[3] = {1, d.nx, d.nx * d.ny};
+  double area = 0;
+  for (std::size_t k = 0; k < d.nz; ++k)
+    for (std::size_t j = 0; j < d.ny; ++j)
+      for (std::size_t i = 0; i < d.nx; ++i) {
+        const std::size_t idx = v.index(i, j, k);
+        const std::size_t ijk[3] = {i, j, k};
+        for (int a = 0; a < 3; ++a)
+          if (ijk[a] + 1 < d[a] && v.get(idx) != v.get(idx + step[a])) area += sp[(a + 1) % 3] * sp[(a + 2) % 3];
+      }
+  if (area == 0) throw InputError(quote(what) + ": a single label; expected a label map with at least two labels");
+  return area * 2 / 3;
+}
+
+SizeSearchResult cgal_size_search(const CgalMesher& mesher, CgalMeshParams p, const SizeSearchParams& s) {
+  SizeSearchResult out;
+  if (s.target == 0) {
+    out.best = mesher(p);
+    out.facet_size = p.facet_size;
+    return out;
+  }
+  if (!(s.start_size > 0)) throw UsageError("cgal_size_search: start size must be > 0 world units");
+  p.facet_size = s.start_size;
+  double best_err = 1e300;
+  for (int k = 0; k < std::max(1, s.max_runs); ++k) {
+    CgalMeshResult r = mesher(p);
+    const double n = double(r.surface.vertices.size());
+    const double err = std::abs(n / double(s.target) - 1);
+    out.tries.push_back({p.facet_size, r.surface.vertices.size(), r.seconds});
+    info("facet size " + std::to_string(p.facet_size) + ": " + std::to_string(r.surface.vertices.size()) +
+         " vertices (target " + std::to_string(s.target) + ")");
+    if (err < best_err) {
+      best_err = err;
+      out.best = std::move(r);
+      out.facet_size = p.facet_size;
+    }
+    if (err <= s.tolerance || n == 0) break;
+    p.facet_size *= std::sqrt(n / double(s.target));
+  }
+  out.deviation = best_err;
+  return out;
 }
 
 Mesh marching_cubes_baseline(const Volume& v, double iso, bool material_below) {

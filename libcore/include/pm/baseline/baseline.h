@@ -5,6 +5,8 @@
 // map (with its triple lines protected). World units from the volume header.
 #include <cstddef>
 #include <cstdint>
+#include <functional>
+#include <string>
 #include <vector>
 
 #include "pm/base/volume.h"
@@ -67,5 +69,38 @@ std::vector<std::vector<Vec3>> triple_lines(const Volume& labels);
 /// `area` (world units^2): hexagonal sampling with Mesh_3's typical edge
 /// length ~ 1.2 facet_size. A starting value for a search.
 double facet_size_for_vertices(double area, std::size_t vertices);
+
+/// Area of the interfaces of a label map, world units^2: 2/3 of the area of
+/// the voxel faces between two different labels (a staircase overestimates a
+/// smooth surface by about 3/2). \throw InputError (naming `what`) when the
+/// map holds a single label.
+double label_interface_area(const Volume& labels, const std::string& what);
+
+struct SizeSearchParams {
+  std::size_t target = 0;   ///< vertices wanted (0: one run at the given facet size)
+  double start_size = 0;    ///< first facet size tried, world units (e.g. facet_size_for_vertices)
+  double tolerance = 0.1;   ///< accepted relative deviation of the vertex count
+  int max_runs = 5;         ///< most Mesh_3 runs
+};
+
+struct SizeSearchTry {
+  double facet_size = 0;
+  std::size_t vertices = 0;
+  double seconds = 0;
+};
+
+struct SizeSearchResult {
+  CgalMeshResult best;             ///< the run closest to the target
+  double facet_size = 0;           ///< its facet size, world units
+  double deviation = 0;            ///< |vertices / target - 1| of the best run
+  std::vector<SizeSearchTry> tries;
+};
+
+/// Run `mesher` at p.facet_size (target 0), or search the facet size whose
+/// mesh has about `target` vertices: N ~ 1/size^2, so size *= sqrt(N / target)
+/// after each run, until within the tolerance or max_runs. A given
+/// facet_distance stays fixed; by default it is facet_size / 4 at every size.
+using CgalMesher = std::function<CgalMeshResult(const CgalMeshParams&)>;
+SizeSearchResult cgal_size_search(const CgalMesher& mesher, CgalMeshParams p, const SizeSearchParams& s);
 
 }  // namespace pm
