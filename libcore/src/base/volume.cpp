@@ -64,10 +64,11 @@ bool Geometry::axis_aligned() const {
 }
 
 Geometry with_world_signs(const Geometry& g, const Vec3& s) {
+  // + 0.0 turns the -0 of a negated 0 into 0 (headers then read "0", not "-0").
   Geometry r = g;
   for (int row = 0; row < 3; ++row) {
-    r.origin[row] = s[row] * g.origin[row];
-    for (int c = 0; c < 3; ++c) r.directions[row][c] = s[row] * g.directions[row][c];
+    r.origin[row] = s[row] * g.origin[row] + 0.0;
+    for (int c = 0; c < 3; ++c) r.directions[row][c] = s[row] * g.directions[row][c] + 0.0;
   }
   return r;
 }

@@ -7,10 +7,10 @@
 // are samples at nodes ("cell-centered" data are treated as node samples at
 // the cell centres). Axis 0 varies fastest in memory.
 //
-// World frame: LPS. Every world coordinate inside libcore
-// (volume origins and directions, particles, meshes) is patient LPS: +x
-// towards the patient's Left, +y Posterior, +z Superior, as in DICOM, ITK,
-// 3D Slicer's files and MetaImage. The volume readers convert into it (NRRD
+// World frame: LPS. Every world coordinate inside libcore (volume origins
+// and directions, particles, meshes) is patient LPS: +x towards the
+// patient's Left, +y Posterior, +z Superior, as in DICOM, ITK, 3D Slicer's
+// files and MetaImage. The volume readers convert into it (NRRD
 // "space", NIfTI's RAS sform/qform and xyzt_units, MetaImage, which is LPS;
 // INR and VDB carry no frame and are taken as LPS) and the writers convert
 // out of it (NRRD "space: left-posterior-superior", NIfTI RAS sform + qform
@@ -77,7 +77,7 @@ Geometry with_world_signs(const Geometry& g, const Vec3& s);
 struct FrameSource {
   std::string format;  ///< "NRRD", "NIfTI", "MetaImage", "INR", "VDB"
   /// The file's own frame as it names it, e.g. "right-anterior-superior"
-  /// (NRRD space), "RAS (sform, scanner_anat)", "none".
+  /// (NRRD space), "RAS (sform, scanner_anat, mm)", "none".
   std::string space;
   /// One line when the coordinates are not anatomical or were taken without
   /// a frame (INR, a NIfTI without qform and sform), else empty.
