@@ -35,6 +35,12 @@ pm_cli_test(volconv.labels_absent "volconv: error: .*none of the labels 7 occurs
 pm_cli_test(volconv.bad_merge "volconv: usage error: merge rule .*malformed" ${VC} ${D}/onevoxel.nrrd /tmp/pm_x.nrrd --merge "1,2")
 pm_cli_test(volconv.help_example "Example:.*volconv" ${VC} --help)
 pm_cli_script(volconv.workflow volconv_test.sh)
+# World frame (issue 21): NRRD spaces that cannot be taken to LPS; every format pair
+# against nibabel / independent header readers (exit 77 = skipped without nibabel).
+pm_cli_test(volconv.space_conflict "volconv: error: read_nrrd: .*space_conflict.nrrd" ${VC} ${D}/space_conflict.nrrd /tmp/pm_x.nrrd)
+pm_cli_test(volconv.space_2d "volconv: error: read_nrrd: .*space_2d.nrrd.*space \"right-up\" is 2-D; expected a 3-D space" ${VC} ${D}/space_2d.nrrd /tmp/pm_x.nrrd)
+add_test(NAME cli.volconv.frames COMMAND /usr/bin/python3 ${CMAKE_SOURCE_DIR}/tests/cli/frames_test.py $<TARGET_FILE_DIR:volconv>)
+set_tests_properties(cli.volconv.frames PROPERTIES LABELS cli SKIP_RETURN_CODE 77 TIMEOUT 300)
 # == particles
 set(PT $<TARGET_FILE:particles>)
 set(PTD ${CMAKE_SOURCE_DIR}/tests/data)
