@@ -162,6 +162,13 @@ EXTRA = [
     ("baseline", "mode bogus", ["bogus", "-i", SDF, "-o", o(".ply")], 2, "bogus"),
     ("baseline", "no surface", ["mc", "-i", FAR, "--iso", "0", "-o", o(".ply")], 1, FAR),
     ("multiparticles", "--spacing 0", ["--materials", MASK, "--spacing", "0", "-o", o(".ply")], 2, "spacing"),
+    # unsupported extensions of the other outputs and an unknown --frame (issue 21), inputs missing
+    ("tetlabel", "--tets .obj", [MISSING_M, "--implicit", "sphere", "-o", o(".ply"), "--tets", o(".obj")], 2, o(".obj")),
+    ("tetlabel", "--frame xyz", [MISSING_M, "--implicit", "sphere", "-o", o(".ply"), "--frame", "xyz"], 2, "--frame"),
+    ("mcinit", "points as .mesh", [MISSING_V, o(".mesh"), "--iso", "0"], 2, o(".mesh")),
+    ("mcinit", "--stats .txt", [MISSING_V, o(".ply"), "--iso", "0", "--stats", o(".txt")], 2, o(".txt")),
+    ("medialaxis", "--volume .xyz", [MISSING_V, o(".ply"), "--volume", o(".xyz")], 2, o(".xyz")),
+    ("sizingfield", "--lfs .xyz", ["--sdf", MISSING_V, "--ma", MA, "-o", o(".nrrd"), "--lfs", o(".xyz")], 2, o(".xyz")),
 ]
 
 
@@ -194,6 +201,10 @@ for t in present:
             "tighten": MASK, "medialaxis": SDF, "sizingfield": SDF, "tetlabel": SPHERE_PTS, "meshstats": TET,
             "baseline": SDF, "multiparticles": MASK}[t]
     rows.append((t, "unwritable output", d["argv"](good, UNWRITABLE + d["ext"]), 1, UNWRITABLE + d["ext"]))
+    # An output extension the tool cannot write is a usage error found before the
+    # (here missing) input is opened: exit 2, not the missing file's exit 1.
+    missing = MISSING_V if d["kind"] == "volume" else MISSING_M
+    rows.append((t, "unsupported output extension, input missing", d["argv"](missing, o(".xyz")), 2, o(".xyz")))
 rows += [r for r in EXTRA if r[0] in present]
 
 for tool, case, argv, code, names in rows:

@@ -64,7 +64,7 @@ pm_cli_test(particles.nan_seed "particles: error: seed point 1 is not finite: \\
   sh -c "printf 'ply\\nformat ascii 1.0\\nelement vertex 2\\nproperty float x\\nproperty float y\\nproperty float z\\nend_header\\n1 0 0\\nnan 0 1\\n' > /tmp/pm_p_nan.ply && exec ${PT} --implicit sphere --spacing 0.3 --init /tmp/pm_p_nan.ply -o /tmp/pm_p.ply")
 pm_cli_test(particles.not_converged "particles: warning: not converged after 2 iterations" ${PT} --implicit sphere --spacing 0.3 --max-iters 2 -o /tmp/pm_p.ply)
 pm_cli_test(particles.bad_kernel "particles: usage error: --kernel: cubic not in" ${PT} -i ${PTD}/onevoxel.nrrd --iso 0.1 --spacing 0.3 --kernel cubic -o /tmp/pm_p.ply)
-pm_cli_test(particles.bad_output "particles: usage error: output .*pm_p.xyz.*: expected a .ply file" ${PT} --implicit sphere --spacing 0.3 -o /tmp/pm_p.xyz)
+pm_cli_test(particles.bad_output "particles: usage error: --output .*pm_p.xyz.*: unknown point set extension \".xyz\"; expected one of .ply .vtp .vtk" ${PT} --implicit sphere --spacing 0.3 -o /tmp/pm_p.xyz)
 pm_cli_test(particles.sizing_and_spacing "particles: usage error: give --spacing or --sizing, not both" ${PT} --implicit sphere --spacing 0.3 --sizing ${PTD}/onevoxel.nrrd -o /tmp/pm_p.ply)
 pm_cli_script(particles.workflow particles_test.sh)
 # == render
@@ -122,7 +122,7 @@ pm_cli_test(mcinit.junctions_one_label "mcinit: error: .*zeros.nrrd.*single labe
 pm_cli_test(mcinit.no_iso "mcinit: usage error: --iso C is required" ${MC} ${D}/onevoxel.nrrd /tmp/pm_mc_x.ply)
 pm_cli_test(mcinit.bad_kernel "mcinit: usage error: --kernel \"linear\"" ${MC} ${D}/onevoxel.nrrd /tmp/pm_mc_x.ply --iso 0.5 --kernel linear)
 pm_cli_test(mcinit.zero_decimate "mcinit: usage error: mc_seeds: decimate 0; expected >= 1" ${MC} ${D}/onevoxel.nrrd /tmp/pm_mc_x.ply --iso 0.5 --decimate 0)
-pm_cli_test(mcinit.not_ply "mcinit: usage error: .*pm_mc_x.off.*expected a .ply file" ${MC} ${D}/onevoxel.nrrd /tmp/pm_mc_x.off --iso 0.5)
+pm_cli_test(mcinit.not_points "mcinit: usage error: .*pm_mc_x.off.*unknown point set extension.*expected one of .ply .vtp .vtk" ${MC} ${D}/onevoxel.nrrd /tmp/pm_mc_x.off --iso 0.5)
 pm_cli_test(mcinit.help_example "Example:.*mcinit .*--iso" ${MC} --help)
 pm_cli_script(mcinit.workflow mcinit_test.sh)
 # == tighten
@@ -147,7 +147,7 @@ pm_cli_test(medialaxis.no_zero_crossing "medialaxis: error: .*grey_ramp.nrrd.*no
 pm_cli_test(medialaxis.iso_outside "medialaxis: error: .*grey_ramp.nrrd.*no voxels straddle the isovalue 100" ${MA} ${D}/grey_ramp.nrrd /tmp/pm_ma_x.ply --iso 100)
 pm_cli_test(medialaxis.bad_cos_alpha "medialaxis: usage error: --cos-alpha 1; expected a value in \\(-1, 1\\)" ${MA} ${D}/grey_ramp.nrrd /tmp/pm_ma_x.ply --iso 10 --cos-alpha 1)
 pm_cli_test(medialaxis.bad_side "medialaxis: usage error: --side: middle not in" ${MA} ${D}/grey_ramp.nrrd /tmp/pm_ma_x.ply --side middle)
-pm_cli_test(medialaxis.bad_output "medialaxis: usage error: output .*pm_ma_x.off.*expected a .ply file" ${MA} ${D}/grey_ramp.nrrd /tmp/pm_ma_x.off)
+pm_cli_test(medialaxis.bad_output "medialaxis: usage error: output .*pm_ma_x.off.*unknown point set extension" ${MA} ${D}/grey_ramp.nrrd /tmp/pm_ma_x.off)
 pm_cli_test(medialaxis.sdf_out_without_iso "medialaxis: usage error: --sdf-out needs --iso" ${MA} ${D}/grey_ramp.nrrd /tmp/pm_ma_x.ply --sdf-out /tmp/pm_ma_x.nrrd)
 pm_cli_test(medialaxis.help_example "Example:.*medialaxis .*--volume" ${MA} --help)
 pm_cli_script(medialaxis.workflow medialaxis_test.sh)
@@ -196,3 +196,5 @@ pm_cli_test(multiparticles.help_example "Example:.*multiparticles --materials" $
 pm_cli_script(ch6.tools ch6_test.sh)
 pm_cli_script(ch6.pipeline ch6_pipeline_test.sh)
 set_tests_properties(cli.ch6.pipeline PROPERTIES TIMEOUT 1500)
+# == mesh, point and tetrahedral formats (issue 21): meshio and VTK open every file we write
+pm_cli_script(formats.every_viewer_opens formats_test.sh)

@@ -14,6 +14,7 @@
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
 #include "pm/volume/labels.h"
+#include "pm/io/output_path.h"
 
 namespace {
 
@@ -127,9 +128,7 @@ int main(int argc, char** argv) {
       return;
     }
     if (out.empty()) throw pm::UsageError("an output file is required (or --info)");
-    if (!pm::is_volume_path(out))
-      throw pm::UsageError("output " + pm::quote(out) +
-                           ": unknown volume extension; expected .nrrd .nhdr .vdb .mha .mhd .nii .nii.gz .inr .inr.gz");
+    pm::check_output_path(out, pm::OutputKind::volume, "output");
     pm::Volume v;
     if (argmax) {
       const pm::MaterialSet ms = pm::load_materials(in, pm::KernelType::catmull_rom);

@@ -14,7 +14,7 @@
 #include "pm/base/error.h"
 #include "pm/base/log.h"
 #include "pm/io/gzip.h"
-#include "pm/io/volume_io.h"
+#include "pm/io/volume_header.h"
 
 namespace fs = std::filesystem;
 

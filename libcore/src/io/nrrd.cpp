@@ -15,7 +15,7 @@
 #include "pm/base/atomic_file.h"
 #include "pm/base/error.h"
 #include "pm/io/gzip.h"
-#include "pm/io/volume_io.h"
+#include "pm/io/volume_header.h"
 
 namespace fs = std::filesystem;
 

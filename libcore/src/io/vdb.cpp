@@ -24,7 +24,7 @@
 
 #include "pm/base/atomic_file.h"
 #include "pm/base/error.h"
-#include "pm/io/volume_io.h"
+#include "pm/io/volume_header.h"
 
 // OpenVDB 10.0's io::bloscFromStream (io/Compression.cc) reads an
 // uncompressed chunk of the size the file declares into a buffer of the size
