@@ -76,7 +76,7 @@ pm_cli_test(render.zero_size "render: usage error: --size 0x100: expected each s
 pm_cli_test(render.huge_size "render: usage error: --size 9000x10: expected each side in 1..8192" ${RD} ${D}/sphere_points.ply -o /tmp/pm_r.png --size 9000x10)
 pm_cli_test(render.bad_size "render: usage error: --size \"big\": expected WxH" ${RD} ${D}/sphere_points.ply -o /tmp/pm_r.png --size big)
 pm_cli_test(render.bad_mode "render: usage error: .*voxels" ${RD} ${D}/sphere_points.ply -o /tmp/pm_r.png --mode voxels)
-pm_cli_test(render.bad_extension "render: usage error: .*pm_r.jpg.*expected .png" ${RD} ${D}/sphere_points.ply -o /tmp/pm_r.jpg)
+pm_cli_test(render.bad_extension "render: usage error: .*pm_r.jpg.*expected .*[.]png" ${RD} ${D}/sphere_points.ply -o /tmp/pm_r.jpg)
 pm_cli_test(render.mesh_without_faces "render: error: .*needs faces" ${RD} ${D}/sphere_points.ply -o /tmp/pm_r.png --mode mesh)
 pm_cli_test(render.help_example "Example:.*render .*-o view.png" ${RD} --help)
 pm_cli_script(render.workflow render_test.sh)
