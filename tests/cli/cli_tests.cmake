@@ -190,3 +190,6 @@ pm_cli_test(multiparticles.help_example "Example:.*multiparticles --materials" $
 pm_cli_script(ch6.tools ch6_test.sh)
 pm_cli_script(ch6.pipeline ch6_pipeline_test.sh)
 set_tests_properties(cli.ch6.pipeline PROPERTIES TIMEOUT 120)
+# == cohorts: the Snakemake workflow (workflow/Snakefile) on three scans and a bad one; skips without snakemake
+pm_cli_script(workflow.cohort workflow_test.sh)
+set_tests_properties(cli.workflow.cohort PROPERTIES TIMEOUT 300 SKIP_RETURN_CODE 77)

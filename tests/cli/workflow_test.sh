@@ -121,7 +121,23 @@ test "$jobs" = "rule outcome:rule report:rule surface_meshstats:rule surface_ren
 test "$(stat -c %Y "$T/res/ball/work/particles/points.ply")" = "$points_mtime"
 
 # --- the Slurm profile parses and sets per-stage threads and memory (dry run, no cluster) -
-"${SMK[@]}" --profile "$SRC/workflow/profiles/slurm" -n --forceall --config sheet="$T/cohort.csv" \
+# (--cores 64 so that the dry run does not cap threads at one core as a local run would)
+"${SMK[@]}" --profile "$SRC/workflow/profiles/slurm" -n --forceall --cores 64 --config sheet="$T/cohort.csv" \
   results="$T/res" bin="$BIN" > "$T/slurm.out" 2>&1 || { echo "slurm profile dry run failed" >&2; cat "$T/slurm.out" >&2; exit 1; }
-grep -Eq 'resources: .*mem_mb=' "$T/slurm.out" || { echo "slurm profile: no mem_mb" >&2; cat "$T/slurm.out" >&2; exit 1; }
+$PY - "$T/slurm.out" "$SRC/workflow/profiles/slurm/config.yaml" <<'PY'
+import re, sys
+out, prof = open(sys.argv[1]).read(), open(sys.argv[2]).read()
+want_mem = dict(re.findall(r"- (\w+):mem_mb=(\d+)", prof))
+want_thr = dict(re.findall(r"- (\w+)=(\d+)\n", prof))
+jobs = re.findall(r"rule (\w+):\n(?:    .*\n)*?    resources: ([^\n]*)", out)
+assert len(jobs) >= 20, len(jobs)
+for rule, res in jobs:
+    if rule in want_mem:
+        assert f"mem_mb={want_mem[rule]}," in res + ",", (rule, res, want_mem[rule])
+table = dict(re.findall(r"^(\w+)\s+\d+\s+\d+\s+(\d+)$", out, re.M))
+for rule, n in want_thr.items():
+    if rule in table:
+        assert table[rule] == n, (rule, table[rule], n)
+assert table.get("surface_particles") == want_thr["surface_particles"], table
+PY
 echo "workflow passed"
