@@ -29,17 +29,18 @@ open(sys.argv[2], "wb").write(head + vals[:100])
 PY
 
 # --- bad sheets: refused up front, naming the row, before any job runs -------------------
-refused() {  # refused NAME EXPECTED-REGEX: the sheet $T/NAME.csv must be refused with that message
-  if "${SMK[@]}" --config sheet="$T/$1.csv" results="$T/res_$1" bin="$BIN" > "$T/$1.out" 2>&1; then
-    echo "sheet $1 was accepted" >&2; cat "$T/$1.out" >&2; exit 1
-  fi
+# (the Snakefile's own check for one of them; cohort.py check runs the same code for the rest)
+refused() {  # refused NAME EXPECTED-REGEX [snakemake]: the sheet $T/NAME.csv must be refused with that message
+  if [ "${3:-}" = snakemake ]; then cmd=("${SMK[@]}" --config sheet="$T/$1.csv" results="$T/res_$1" bin="$BIN")
+  else cmd=($PY "$SRC/workflow/scripts/cohort.py" check "$T/$1.csv"); fi
+  if "${cmd[@]}" > "$T/$1.out" 2>&1; then echo "sheet $1 was accepted" >&2; cat "$T/$1.out" >&2; exit 1; fi
   grep -Eq "$2" "$T/$1.out" || { echo "sheet $1: expected /$2/ in:" >&2; cat "$T/$1.out" >&2; exit 1; }
   test ! -e "$T/res_$1" || { echo "sheet $1: jobs ran" >&2; exit 1; }
 }
+printf 'id,input,pipeline\nball,ball.nrrd,surface\nmickey,%s,materials\nball,ball.nrrd,surface\n' "$MICKEY" > "$T/dup.csv"
+refused dup 'cohort: error: cohort sheet ".*dup.csv": row 4: id "ball" duplicates row 2; expected unique ids' snakemake
 printf 'id,input\nball,ball.nrrd\n' > "$T/nocolumn.csv"
 refused nocolumn 'cohort: error: cohort sheet ".*nocolumn.csv": row 1 \(header\): missing column "pipeline"'
-printf 'id,input,pipeline\nball,ball.nrrd,surface\nmickey,%s,materials\nball,ball.nrrd,surface\n' "$MICKEY" > "$T/dup.csv"
-refused dup 'cohort: error: cohort sheet ".*dup.csv": row 4: id "ball" duplicates row 2; expected unique ids'
 printf 'id,input,pipeline\nball,ball.nrrd,surface\ngone,nope.nrrd,surface\n' > "$T/missing.csv"
 refused missing 'cohort: error: cohort sheet ".*missing.csv": row 3: input "nope.nrrd": no such file'
 mkdir "$T/adir.nrrd"
