@@ -35,6 +35,12 @@ pm_cli_test(volconv.labels_absent "volconv: error: .*none of the labels 7 occurs
 pm_cli_test(volconv.bad_merge "volconv: usage error: merge rule .*malformed" ${VC} ${D}/onevoxel.nrrd /tmp/pm_x.nrrd --merge "1,2")
 pm_cli_test(volconv.help_example "Example:.*volconv" ${VC} --help)
 pm_cli_script(volconv.workflow volconv_test.sh)
+# World frame (issue 21): NRRD spaces that cannot be taken to LPS; every format pair
+# against nibabel / independent header readers (exit 77 = skipped without nibabel).
+pm_cli_test(volconv.space_conflict "volconv: error: read_nrrd: .*space_conflict.nrrd" ${VC} ${D}/space_conflict.nrrd /tmp/pm_x.nrrd)
+pm_cli_test(volconv.space_2d "volconv: error: read_nrrd: .*space_2d.nrrd.*space \"right-up\" is 2-D; expected a 3-D space" ${VC} ${D}/space_2d.nrrd /tmp/pm_x.nrrd)
+add_test(NAME cli.volconv.frames COMMAND /usr/bin/python3 ${CMAKE_SOURCE_DIR}/tests/cli/frames_test.py $<TARGET_FILE_DIR:volconv>)
+set_tests_properties(cli.volconv.frames PROPERTIES LABELS cli SKIP_RETURN_CODE 77 TIMEOUT 300)
 # == particles
 set(PT $<TARGET_FILE:particles>)
 set(PTD ${CMAKE_SOURCE_DIR}/tests/data)
@@ -182,14 +188,14 @@ pm_cli_test(meshstats.seeds_without_component "meshstats: error: .*sphere_points
 #    inputs, unwritable outputs, out-of-range options; SIGINT/SIGTERM mid-run leaves nothing
 add_test(NAME cli.bad_input_matrix COMMAND python3 ${CMAKE_SOURCE_DIR}/tests/cli/bad_input_matrix.py
   $<TARGET_FILE_DIR:volconv> ${CMAKE_SOURCE_DIR})
-set_tests_properties(cli.bad_input_matrix PROPERTIES LABELS cli TIMEOUT 300)
+set_tests_properties(cli.bad_input_matrix PROPERTIES LABELS cli TIMEOUT 1500)
 # == multiparticles (Chapter 6 junction sampling)
 pm_cli_script(multiparticles.wedges multiparticles_test.sh)
 pm_cli_test(multiparticles.help_example "Example:.*multiparticles --materials" $<TARGET_FILE:multiparticles> --help)
 # == Chapter 6: per-label tightening, multi-material tetlabel/meshstats, bad input, the ch6 pipeline
 pm_cli_script(ch6.tools ch6_test.sh)
 pm_cli_script(ch6.pipeline ch6_pipeline_test.sh)
-set_tests_properties(cli.ch6.pipeline PROPERTIES TIMEOUT 120)
+set_tests_properties(cli.ch6.pipeline PROPERTIES TIMEOUT 1500)
 # == cohorts: the Snakemake workflow (workflow/Snakefile) on three scans and a bad one; skips without snakemake
 pm_cli_script(workflow.cohort workflow_test.sh)
 set_tests_properties(cli.workflow.cohort PROPERTIES TIMEOUT 300 SKIP_RETURN_CODE 77)

@@ -11,16 +11,7 @@
 #include "pm/field/distance.h"
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
-#include "pm/ops/medialaxis.h"
-
-namespace {
-// A number as a user typed it (no trailing zeros), for messages.
-std::string num(double v) {
-  std::ostringstream s;
-  s << v;
-  return s.str();
-}
-}  // namespace
+#include "pm/volume/medialaxis.h"
 
 int main(int argc, char** argv) {
   pm::Tool tool("medialaxis",
@@ -58,7 +49,7 @@ int main(int argc, char** argv) {
     st["parameters"] = {{"cos_alpha", p.cos_alpha}, {"side", side}, {"foot_iterations", p.foot_iterations}};
     if (pm::file_extension(out) != ".ply") throw pm::UsageError("output " + pm::quote(out) + ": expected a .ply file");
     if (!(p.cos_alpha > -1 && p.cos_alpha < 1))
-      throw pm::UsageError("--cos-alpha " + num(p.cos_alpha) + "; expected a value in (-1, 1)");
+      throw pm::UsageError("--cos-alpha " + pm::format_number(p.cos_alpha) + "; expected a value in (-1, 1)");
     if (p.foot_iterations < 0)
       throw pm::UsageError("--foot-iterations " + std::to_string(p.foot_iterations) + "; expected >= 0");
     if (!volume.empty() && !pm::is_volume_path(volume))

@@ -9,17 +9,8 @@
 #include "pm/cli/run_tool.h"
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
-#include "pm/ops/medialaxis.h"
-#include "pm/ops/sizingfield.h"
-
-namespace {
-// A number as a user typed it (no trailing zeros), for messages.
-std::string num(double v) {
-  std::ostringstream s;
-  s << v;
-  return s.str();
-}
-}  // namespace
+#include "pm/volume/medialaxis.h"
+#include "pm/volume/sizingfield.h"
 
 int main(int argc, char** argv) {
   pm::Tool tool("sizingfield",
@@ -53,10 +44,10 @@ int main(int argc, char** argv) {
   return tool.run(argc, argv, [&] {
     auto& st = pm::stats();
     p.contract = !no_contract;
-    if (!(p.eps > 0)) throw pm::UsageError("--eps " + num(p.eps) + "; expected > 0");
-    if (!(p.hmin >= 0)) throw pm::UsageError("--hmin " + num(p.hmin) + "; expected >= 0 (world units)");
-    if (!(p.band > 0)) throw pm::UsageError("--band " + num(p.band) + "; expected > 0 voxels");
-    if (!(p.contraction >= 1)) throw pm::UsageError("--contraction " + num(p.contraction) + "; expected >= 1");
+    if (!(p.eps > 0)) throw pm::UsageError("--eps " + pm::format_number(p.eps) + "; expected > 0");
+    if (!(p.hmin >= 0)) throw pm::UsageError("--hmin " + pm::format_number(p.hmin) + "; expected >= 0 (world units)");
+    if (!(p.band > 0)) throw pm::UsageError("--band " + pm::format_number(p.band) + "; expected > 0 voxels");
+    if (!(p.contraction >= 1)) throw pm::UsageError("--contraction " + pm::format_number(p.contraction) + "; expected >= 1");
     p.at_foot_point = !at_node;
     st["inputs"] = {{"sdf", sdfs}, {"ma", mas}};
     st["parameters"] = {{"eps", p.eps},           {"hmin", p.hmin},  {"band", p.band},
