@@ -112,8 +112,9 @@ points_mtime=$(stat -c %Y "$T/res/ball/work/particles/points.ply")
 grep -q "Nothing to be done" "$T/run2.out" || { echo "rerun did something:" >&2; cat "$T/run2.out" >&2; exit 1; }
 test "$before" = "$(stat -c %Y "$T/res/report.csv" "$T/res/ball/work/particles/points.ply")"
 
-# --- resumable: a deleted stage output is remade with what follows it, and nothing else ---
-rm -rf "$T/res/ball/work/tetlabel"
+# --- resumable: a deleted stage folder (with the scan's outcome.json, which Snakemake 7.21
+# otherwise keeps as up to date) is remade with what follows it, and nothing else ---
+rm -rf "$T/res/ball/work/tetlabel" "$T/res/ball/outcome.json"
 "${SMK[@]}" --config sheet="$T/cohort.csv" results="$T/res" bin="$BIN" > "$T/run3.out" 2>&1 ||
   { echo "resume failed" >&2; cat "$T/run3.out" >&2; exit 1; }
 jobs=$(grep -Eo '^rule [a-z_]+:' "$T/run3.out" | sort | tr -d '\n')
