@@ -198,3 +198,6 @@ pm_cli_script(ch6.pipeline ch6_pipeline_test.sh)
 set_tests_properties(cli.ch6.pipeline PROPERTIES TIMEOUT 1500)
 # == mesh, point and tetrahedral formats (issue 21): meshio and VTK open every file we write
 pm_cli_script(formats.every_viewer_opens formats_test.sh)
+# == cohorts: the Snakemake workflow (workflow/Snakefile) on three scans and a bad one; skips without snakemake
+pm_cli_script(workflow.cohort workflow_test.sh)
+set_tests_properties(cli.workflow.cohort PROPERTIES TIMEOUT 1500 SKIP_RETURN_CODE 77)
