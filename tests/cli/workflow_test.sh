@@ -112,12 +112,13 @@ points_mtime=$(stat -c %Y "$T/res/ball/work/particles/points.ply")
 grep -q "Nothing to be done" "$T/run2.out" || { echo "rerun did something:" >&2; cat "$T/run2.out" >&2; exit 1; }
 test "$before" = "$(stat -c %Y "$T/res/report.csv" "$T/res/ball/work/particles/points.ply")"
 
-# --- resumable: a deleted stage folder (with the scan's outcome.json, which Snakemake 7.21
-# otherwise keeps as up to date) is remade with what follows it, and nothing else ---
-rm -rf "$T/res/ball/work/tetlabel" "$T/res/ball/outcome.json"
+# --- resumable: a deleted stage folder is remade with what follows it, and nothing else.
+# Snakemake 7.21 does not rebuild a missing intermediate while the files after it exist,
+# so the scan's outcome.json and the report go too (or use --forcerun RULE) ---
+rm -rf "$T/res/ball/work/tetlabel" "$T/res/ball/outcome.json" "$T/res/report.csv" "$T/res/report.html"
 "${SMK[@]}" --config sheet="$T/cohort.csv" results="$T/res" bin="$BIN" > "$T/run3.out" 2>&1 ||
   { echo "resume failed" >&2; cat "$T/run3.out" >&2; exit 1; }
-jobs=$(grep -Eo '^rule [a-z_]+:' "$T/run3.out" | sort | tr -d '\n')
+jobs=$(grep -Eo '^(local)?rule [a-z_]+:' "$T/run3.out" | sed 's/^local//' | grep -v '^rule all:' | sort | tr -d '\n')
 test "$jobs" = "rule outcome:rule report:rule surface_meshstats:rule surface_render:rule surface_tetlabel:" ||
   { echo "resume ran: $jobs" >&2; cat "$T/run3.out" >&2; exit 1; }
 test "$(stat -c %Y "$T/res/ball/work/particles/points.ply")" = "$points_mtime"
