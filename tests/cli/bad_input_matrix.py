@@ -71,6 +71,8 @@ NOPTS = os.path.join(DATA, "empty.ply")
 SPHERE_PTS = os.path.join(DATA, "sphere_points.ply")
 TET = os.path.join(DATA, "tet.off")
 UNWRITABLE = os.path.join(T, "no_such_dir", "out")
+# World frame (issue 21): NRRD "space" and "space directions" of different dimensions.
+SPACE_CONFLICT = os.path.join(DATA, "space_conflict.nrrd")
 
 # --- the tools and how each is called ----------------------------------------
 # Each tool: a function (input, output) -> argv for its main input, the kind of
@@ -122,6 +124,11 @@ EXTRA = [
     (P, "sizing NaN/Inf", ["--implicit", "sphere", "--sizing", NAN_V, "-o", o(".ply")], 1, NAN_V),
     (P, "sizing 2-D", ["--implicit", "sphere", "--sizing", PLANE, "-o", o(".ply")], 1, PLANE),
     (P, "no surface", ["-i", FAR, "--iso", "0", "--spacing", "0.5", "-o", o(".ply")], 1, FAR),
+    # a NRRD whose space and space directions disagree in dimension
+    ("volconv", "space vs space directions", [SPACE_CONFLICT, o(".nrrd")], 1, SPACE_CONFLICT),
+    ("morph", "space vs space directions", [SPACE_CONFLICT, o(".nrrd"), "--op", "dilate"], 1, SPACE_CONFLICT),
+    (P, "space vs space directions", ["-i", SPACE_CONFLICT, "--iso", "0.5", "--spacing", "0.5", "-o", o(".ply")], 1,
+     SPACE_CONFLICT),
     # wrong-type volumes: labels where a distance field is expected and the reverse
     ("medialaxis", "labels, not a distance field", [MASK, o(".ply")], 1, MASK),
     ("sizingfield", "labels, not a distance field", ["--sdf", MASK, "--ma", MA, "-o", o(".nrrd")], 1, MASK),

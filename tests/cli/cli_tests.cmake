@@ -35,6 +35,12 @@ pm_cli_test(volconv.labels_absent "volconv: error: .*none of the labels 7 occurs
 pm_cli_test(volconv.bad_merge "volconv: usage error: merge rule .*malformed" ${VC} ${D}/onevoxel.nrrd /tmp/pm_x.nrrd --merge "1,2")
 pm_cli_test(volconv.help_example "Example:.*volconv" ${VC} --help)
 pm_cli_script(volconv.workflow volconv_test.sh)
+# World frame (issue 21): NRRD spaces that cannot be taken to LPS; every format pair
+# against nibabel / independent header readers (exit 77 = skipped without nibabel).
+pm_cli_test(volconv.space_conflict "volconv: error: read_nrrd: .*space_conflict.nrrd" ${VC} ${D}/space_conflict.nrrd /tmp/pm_x.nrrd)
+pm_cli_test(volconv.space_2d "volconv: error: read_nrrd: .*space_2d.nrrd.*space \"right-up\" is 2-D; expected a 3-D space" ${VC} ${D}/space_2d.nrrd /tmp/pm_x.nrrd)
+add_test(NAME cli.volconv.frames COMMAND /usr/bin/python3 ${CMAKE_SOURCE_DIR}/tests/cli/frames_test.py $<TARGET_FILE_DIR:volconv>)
+set_tests_properties(cli.volconv.frames PROPERTIES LABELS cli SKIP_RETURN_CODE 77 TIMEOUT 300)
 # == particles
 set(PT $<TARGET_FILE:particles>)
 set(PTD ${CMAKE_SOURCE_DIR}/tests/data)
@@ -70,7 +76,7 @@ pm_cli_test(render.zero_size "render: usage error: --size 0x100: expected each s
 pm_cli_test(render.huge_size "render: usage error: --size 9000x10: expected each side in 1..8192" ${RD} ${D}/sphere_points.ply -o /tmp/pm_r.png --size 9000x10)
 pm_cli_test(render.bad_size "render: usage error: --size \"big\": expected WxH" ${RD} ${D}/sphere_points.ply -o /tmp/pm_r.png --size big)
 pm_cli_test(render.bad_mode "render: usage error: .*voxels" ${RD} ${D}/sphere_points.ply -o /tmp/pm_r.png --mode voxels)
-pm_cli_test(render.bad_extension "render: usage error: .*pm_r.jpg.*expected .png" ${RD} ${D}/sphere_points.ply -o /tmp/pm_r.jpg)
+pm_cli_test(render.bad_extension "render: usage error: .*pm_r.jpg.*expected .*[.]png" ${RD} ${D}/sphere_points.ply -o /tmp/pm_r.jpg)
 pm_cli_test(render.mesh_without_faces "render: error: .*needs faces" ${RD} ${D}/sphere_points.ply -o /tmp/pm_r.png --mode mesh)
 pm_cli_test(render.help_example "Example:.*render .*-o view.png" ${RD} --help)
 pm_cli_script(render.workflow render_test.sh)
@@ -192,3 +198,6 @@ pm_cli_script(ch6.pipeline ch6_pipeline_test.sh)
 set_tests_properties(cli.ch6.pipeline PROPERTIES TIMEOUT 1500)
 # == mesh, point and tetrahedral formats (issue 21): meshio and VTK open every file we write
 pm_cli_script(formats.every_viewer_opens formats_test.sh)
+# == cohorts: the Snakemake workflow (workflow/Snakefile) on three scans and a bad one; skips without snakemake
+pm_cli_script(workflow.cohort workflow_test.sh)
+set_tests_properties(cli.workflow.cohort PROPERTIES TIMEOUT 1500 SKIP_RETURN_CODE 77)

@@ -1,12 +1,16 @@
 #pragma once
 // Read and write volumes, choosing the format by file extension:
 //   .nrrd .nhdr (Teem; raw or gzip)   read + write
-//   .vdb (OpenVDB FloatGrid)           read + write
+//   .vdb (OpenVDB float / int grids)   read + write
 //   .mha .mhd (MetaImage, raw/zraw)    read + write
 //   .nii .nii.gz (NIfTI-1)             read + write
 //   .inr .inr.gz (INRimage)            read + write
 // Geometry (origin, spacing, directions) survives every round trip the
-// format can represent.
+// format can represent, in libcore's LPS world frame (pm/base/volume.h):
+// each reader converts the file's frame into LPS and each writer converts
+// out of it, so the same voxel maps to the same anatomical point in every
+// format; Volume::frame_source() says what the file's frame was.
+#include <cstdint>
 #include <string>
 
 #include "pm/base/volume.h"
