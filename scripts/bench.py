@@ -134,6 +134,13 @@ def case_particles():
             upd = st2.get("particle_updates")
             if upd:
                 row("particles", "particle updates per second (2 threads)", round(upd / dt2 / 1e6, 2), "M/s")
+            eng = st2.get("engine", {})
+            if eng.get("trials"):  # issue #16: the engine's own counters (CPU-based: the machine may be shared)
+                row("particles", "engine: updates per CPU second (2 threads)",
+                    round(eng["updates"] / max(st2.get("cpu", 0), 1e-9) / 1e6, 3), "M/s",
+                    note=f"{eng['updates'] / max(n, 1):.1f} updates/particle, {eng['trials'] / eng['updates']:.2f} "
+                    f"trials/update, {eng['rejected_trials'] / eng['trials']:.0%} rejected, "
+                    f"{eng['field_evaluations'] / eng['updates']:.2f} field evaluations/update")
             st3, dt3 = particles_stats(["-i", brain, "--iso", "0.5", "--spacing", "1.0", "-o", out], threads=2)
             row("particles", "~100k particles on a volume surface", round(dt3, 2), "s", "< 60 s",
                 dt3 < 60, f"{st3.get('particles')} particles, {st3.get('iterations')} iterations, "

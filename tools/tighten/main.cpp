@@ -6,6 +6,7 @@
 #include "pm/cli/run_tool.h"
 #include "pm/io/volume_io.h"
 #include "pm/volume/tighten.h"
+#include "pm/io/output_path.h"
 
 int main(int argc, char** argv) {
   pm::Tool tool("tighten",
@@ -49,6 +50,7 @@ int main(int argc, char** argv) {
                                     "~10% and gzip takes seconds on 256^3; off by default)");
 
   return tool.run(argc, argv, [&] {
+    pm::check_output_path(out, pm::OutputKind::volume, "output");
     auto& st = pm::stats();
     double r_given = 0;
     int k_given = 0;
