@@ -700,12 +700,14 @@ LabelMorphResult morph_labels(const Volume& labels, const LabelMorphParams& p) {
     }
     for (std::size_t v = 0; v < state.size(); ++v)
       if (state[v] == kEmpty && !processed[x.idx[v]]) state[v] = x.idx[v];
-    // Never erase a material: a label the steps left without a voxel gets its input voxels back.
+    // Never erase a material: a processed label its own steps left without a
+    // voxel gets its input voxels back. A passive label (typically the
+    // background) that other labels' dilations cover was asked for.
     std::vector<char> present(nl, 0);
     for (std::uint16_t v : state)
       if (v != kEmpty) present[v] = 1;
     for (std::size_t a = 0; a < nl; ++a) {
-      if (present[a]) continue;
+      if (present[a] || !processed[a]) continue;
       std::size_t n = 0;
       for (std::size_t v = 0; v < state.size(); ++v)
         if (x.idx[v] == a) {

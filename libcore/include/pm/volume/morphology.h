@@ -87,8 +87,9 @@ Volume closing(const Volume& mask, const MorphParams& p = {});
 /// `labels` (then it is opened/closed like any material, e.g. Table 6.1's
 /// air) and a voter either way.
 /// No stage erases a material (a label present in the input) silently: when
-/// the morphology would leave a label no voxel, its input voxels are given back
-/// to it; when downsampling would, the output voxel whose block holds most of it
+/// the morphology would leave a processed label no voxel, its input voxels are
+/// given back to it (a passive label that processed labels' dilations cover
+/// is not kept: that was asked for); when downsampling would, the output voxel whose block holds most of it
 /// (and whose own label keeps other voxels) takes it; when min_component would
 /// remove every component of a label, its largest component stays. Each case is
 /// listed in LabelMorphResult::kept (the caller warns); a label that cannot be
