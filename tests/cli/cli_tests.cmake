@@ -179,6 +179,8 @@ pm_cli_test(meshstats.missing "meshstats: error: .*nope.ply.*no such file" ${MS}
 pm_cli_test(meshstats.no_faces "meshstats: error: .*sphere_points.ply.*no faces; expected a triangle mesh" ${MS} ${D}/sphere_points.ply)
 pm_cli_test(meshstats.bad_requirement "meshstats: usage error: requirement \"frob\" is unknown" ${MS} ${D}/tet.off --require frob)
 pm_cli_test(meshstats.check_fails "meshstats: check failed: .*tet.off.*rr_min>=0.99" ${MS} ${D}/tet.off --require rr_min>=0.99)
+pm_cli_test(meshstats.tets_bad_requirement "meshstats: usage error: requirement \"watertight\" is unknown for a tetrahedral mesh" ${MS} ${D}/kuhn_cube.mesh --require watertight)
+pm_cli_test(meshstats.tets_check_fails "meshstats: check failed: .*kuhn_cube.mesh.*min_dihedral>=50 \\(have 45\\)" ${MS} ${D}/kuhn_cube.mesh --require min_dihedral>=50)
 pm_cli_script(mesh.workflow mesh_test.sh)
 # == baseline (marching cubes, CGAL Mesh_3) and Chapter 5 bad input
 pm_cli_script(baseline.sphere baseline_test.sh)

@@ -141,6 +141,35 @@ assert b"frame RAS SPACE=RAS" in open(f"{T}/ras.vtu", "rb").read(200)
 print("formats: %d vertices, %d faces, %d tetrahedra in every format" % (NV, NF, first[1]))
 PYEOF
 
+# The tetrahedral quality report (meshstats on .mesh) against numpy on meshio's reading.
+"$BIN/meshstats" "$T/v.mesh" -o "$T/vq.json" -q --require positive,boundary_manifold,triangles_match
+$PY - "$T" <<'PYEOF'
+import json, sys
+import numpy as np, meshio
+T = sys.argv[1]
+q = json.load(open(f"{T}/vq.json"))
+m = meshio.read(f"{T}/v.mesh")
+tt = np.concatenate([b.data for b in m.cells if b.type == "tetra"])
+mat = np.concatenate([d for b, d in zip(m.cells, m.cell_data["medit:ref"]) if b.type == "tetra"]).reshape(-1)
+p = m.points[tt]
+vol = np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), p[:, 3] - p[:, 0]) / 6
+assert q["overall"]["tets"] == len(tt) and q["positive"] and q["triangles_match"], q
+assert abs(q["overall"]["volume"] - vol.sum()) < 1e-9 * vol.sum(), (q["overall"]["volume"], vol.sum())
+for l in (1, 2):
+    assert abs(q["materials"][str(l)]["volume"] - vol[mat == l].sum()) < 1e-9 * vol.sum()
+# Dihedral angles from face normals, all six per tetrahedron.
+def normal(a, b, c, opp):
+    n = np.cross(b - a, c - a); n /= np.linalg.norm(n, axis=1)[:, None]
+    return np.where((np.einsum("ij,ij->i", n, opp - a) > 0)[:, None], -n, n)
+N = [normal(p[:, (k + 1) % 4], p[:, (k + 2) % 4], p[:, (k + 3) % 4], p[:, k]) for k in range(4)]
+dih = np.degrees(np.pi - np.arccos(np.clip([np.einsum("ij,ij->i", N[k], N[l]) for k in range(4) for l in range(k + 1, 4)], -1, 1)))
+assert abs(q["overall"]["dihedral_min"] - dih.min()) < 1e-6 and abs(q["overall"]["dihedral_max"] - dih.max()) < 1e-6
+assert q["overall"]["share_under_10"] == (dih.min(axis=0) < 10).mean()
+assert sum(q["overall"]["dihedral_hist_10deg"]) == 6 * len(tt)
+print("tet quality: %d tetrahedra, dihedral %.2f..%.2f deg, %.1f%% under 10 deg" %
+      (len(tt), dih.min(), dih.max(), 100 * (dih.min(axis=0) < 10).mean()))
+PYEOF
+
 # Usage errors before any work: the inputs do not even exist, nothing is written.
 mkdir "$T/u"
 expect_usage() {  # expect_usage REGEX cmd...

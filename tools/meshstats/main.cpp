@@ -10,11 +10,13 @@
 #include "pm/base/stats.h"
 #include "pm/cli/field_options.h"
 #include "pm/cli/run_tool.h"
+#include "pm/io/medit.h"
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
 #include "pm/mesh/coverage.h"
 #include "pm/mesh/meshstats.h"
 #include "pm/mesh/meshstats_materials.h"
+#include "pm/mesh/tet_quality.h"
 #include "pm/io/output_path.h"
 
 namespace {
@@ -72,7 +74,11 @@ int main(int argc, char** argv) {
                 "label_a, label_b, from tetlabel --materials) is measured as a whole and per material (each "
                 "material's surface taken from the interfaces), plus boundary, junction-curve and bad edges and "
                 "faces separating a label from itself (--require keys watertight, manifold, "
-                "no_self_intersections, labels_consistent and rr_min/rr_mean then hold for every material).",
+                "no_self_intersections, labels_consistent and rr_min/rr_mean then hold for every material). A "
+                "tetrahedral MEDIT .mesh (tetlabel --tets) gets the volume report: dihedral angles, radius ratio "
+                "3 r_in / r_circ, share of tetrahedra under 10 degrees, volume, per material and overall, and the "
+                "checks positive, boundary_manifold, triangles_match (--require also min_dihedral>=D, rr_min>=R, "
+                "share_under_10<=S).",
                 "meshstats surface.ply -i brain_sdf.nrrd --iso 0 --sizing h.nrrd -o quality.json "
                 "--require rr_min>=0.3,rr_mean>=0.94,watertight,manifold");
   std::string mesh_path, out, sizing_path, require;
@@ -80,7 +86,8 @@ int main(int argc, char** argv) {
   std::string seeds_path;
   std::size_t min_seeds = 8;
   pm::FieldOptions fo;
-  tool.app.add_option("mesh", mesh_path, "Triangle mesh (.ply .off .obj .stl)")->required();
+  tool.app.add_option("mesh", mesh_path, "Triangle mesh (.ply .vtp .vtk .mesh .obj .off .stl) or tetrahedral .mesh")
+      ->required();
   pm::add_field_options(tool.app, fo);
   tool.app.add_option("--sizing", sizing_path, "Sizing field volume h (world units) for the edge/h check");
   tool.app.add_option("-o,--output", out, "Write the report as JSON ('-' = stdout)");
@@ -111,6 +118,24 @@ int main(int argc, char** argv) {
         });
       }
     };
+    if (pm::file_extension(mesh_path) == ".mesh" && pm::medit_has_tetrahedra(mesh_path)) {
+      pm::TetQuality tq;
+      {
+        pm::ScopedStage s("quality");
+        tq = pm::tet_quality(pm::read_medit_tets(mesh_path));
+      }
+      const pm::Json j = pm::to_json(tq);
+      st["quality"] = j;
+      if (pm::verbosity() != pm::Verbosity::quiet) std::fputs(pm::format_table(tq).c_str(), stderr);
+      write_report(j);
+      const auto failed = pm::check_tet_requirements(tq, require);
+      if (!failed.empty()) {
+        std::string msg = pm::quote(mesh_path) + ": " + std::to_string(failed.size()) + " requirement(s) not met:";
+        for (const auto& f : failed) msg += " " + f;
+        throw pm::CheckFailed(msg);
+      }
+      return;
+    }
     const pm::Mesh m = pm::read_mesh(mesh_path);
     if (m.faces.empty()) throw pm::InputError(pm::quote(mesh_path) + ": no faces; expected a triangle mesh");
     pm::MeshQualityParams p;

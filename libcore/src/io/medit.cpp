@@ -125,7 +125,12 @@ void write_medit_tets(const LabelledTets& t, const std::string& path, WorldFrame
   o.save(path);
 }
 
-Mesh read_medit(const std::string& path, WorldFrame* frame) {
+namespace {
+
+// The reader of both read_medit and read_medit_tets: Tetrahedra are kept
+// (vertex indices and references) when `tets` is not null.
+Mesh parse_medit(const std::string& path, WorldFrame* frame, std::vector<std::array<int, 4>>* tets,
+                 std::vector<int>* tet_refs) {
   const std::string where = "read_medit: " + quote(path);
   require_readable(path);
   std::ifstream in(path, std::ios::binary);
@@ -220,6 +225,24 @@ Mesh read_medit(const std::string& path, WorldFrame* frame) {
           refs.push_back(int(r));
         }
       }
+    } else if (key == "Tetrahedra" && tets) {
+      const std::size_t n = count(key, 10);
+      for (std::size_t i = 0; i < n; ++i) {
+        std::array<int, 4> c{};
+        for (int j = 0; j < 4; ++j) {
+          const double x = number(key);
+          if (!(x >= 1) || x != std::floor(x) || x > double(m.vertices.size()))
+            throw fail(key + " " + std::to_string(i) + ": vertex " + std::to_string(x) +
+                       " is out of range; expected an integer in [1, " + std::to_string(m.vertices.size()) +
+                       "] (Vertices must come first)");
+          c[std::size_t(j)] = int(x) - 1;
+        }
+        const double r = number(key + " reference");
+        if (!(std::fabs(r) <= double(std::numeric_limits<int>::max())) || r != std::floor(r))
+          throw fail(key + " " + std::to_string(i) + ": reference " + std::to_string(r) + " is not an int");
+        tets->push_back(c);
+        tet_refs->push_back(int(r));
+      }
     } else if (key == "Edges" || key == "Tetrahedra" || key == "Corners" || key == "Ridges" ||
                key == "RequiredVertices" || key == "Hexahedra" || key == "Prisms") {
       static const std::map<std::string, int> kWords = {{"Edges", 3},       {"Tetrahedra", 5},
@@ -258,6 +281,39 @@ Mesh read_medit(const std::string& path, WorldFrame* frame) {
     }
   }
   return m;
+}
+
+}  // namespace
+
+Mesh read_medit(const std::string& path, WorldFrame* frame) { return parse_medit(path, frame, nullptr, nullptr); }
+
+bool medit_has_tetrahedra(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string line;
+  while (std::getline(in, line)) {
+    const std::size_t b = line.find_first_not_of(" \t\r");
+    if (b != std::string::npos && line.compare(b, 10, "Tetrahedra") == 0) {
+      std::string rest = line.substr(b + 10);
+      if (rest.find_first_not_of(" \t\r") == std::string::npos && !std::getline(in, rest)) return false;
+      return std::atol(rest.c_str()) > 0;
+    }
+  }
+  return false;
+}
+
+LabelledTets read_medit_tets(const std::string& path, WorldFrame* frame) {
+  LabelledTets t;
+  Mesh m = parse_medit(path, frame, &t.tets, &t.materials);
+  if (t.tets.empty())
+    throw InputError("read_medit: " + quote(path) + ": no Tetrahedra; expected a tetrahedral mesh");
+  t.vertices = std::move(m.vertices);
+  t.triangles = std::move(m.faces);
+  const bool pairs = m.face_ints.count("label_a") > 0;
+  for (std::size_t f = 0; f < t.triangles.size(); ++f)
+    t.triangle_labels.push_back(pairs ? std::array<int, 2>{m.face_ints["label_a"][f], m.face_ints["label_b"][f]}
+                                      : std::array<int, 2>{0, m.face_ints["ref"][f]});
+  t.validate("read_medit: " + quote(path));
+  return t;
 }
 
 }  // namespace pm

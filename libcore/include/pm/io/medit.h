@@ -30,6 +30,13 @@ void write_medit(const Mesh& m, const std::string& path, WorldFrame frame = Worl
 /// the section and record.
 Mesh read_medit(const std::string& path, WorldFrame* frame = nullptr);
 
+/// Vertices, Triangles and Tetrahedra (material = the tetrahedron's
+/// reference; triangle labels from the pair comments, else (0, reference)).
+/// \throw as read_medit, and InputError when there are no Tetrahedra.
+LabelledTets read_medit_tets(const std::string& path, WorldFrame* frame = nullptr);
+/// True when the file has a non-empty Tetrahedra section (a quick scan).
+bool medit_has_tetrahedra(const std::string& path);
+
 /// Volume: Vertices, the boundary and interface Triangles (label pairs as
 /// above) and the Tetrahedra with their material as reference.
 void write_medit_tets(const LabelledTets& t, const std::string& path, WorldFrame frame = WorldFrame::lps);

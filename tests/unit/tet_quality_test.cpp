@@ -1,0 +1,127 @@
+// Tetrahedral mesh quality (meshstats on .mesh): dihedral angles and radius
+// ratios with closed forms, and the mesh checks on a cube cut into 6 tetrahedra.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "pm/base/error.h"
+#include "pm/io/medit.h"
+#include "pm/mesh/tet_quality.h"
+#include "test_util.h"
+
+namespace pm {
+namespace {
+
+TEST(TetQuality, RegularTetrahedron) {
+  // Corners of a cube alternately: all six dihedral angles are acos(1/3).
+  const Vec3 a{1, 1, 1}, b{1, -1, -1}, c{-1, 1, -1}, d{-1, -1, 1};
+  for (double x : tet_dihedrals(a, b, c, d)) EXPECT_NEAR(x, std::acos(1.0 / 3) * 180 / M_PI, 1e-12);
+  EXPECT_NEAR(tet_radius_ratio(a, b, c, d), 1.0, 1e-12);
+}
+
+TEST(TetQuality, CornerTetrahedron) {
+  // o, e1, e2, e3: right angles at the three axis edges, acos(1/√3) at the
+  // others; r_in = 1/(3 + √3), r_circ = √3/2.
+  const auto dih = tet_dihedrals({0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1});
+  for (int e = 0; e < 3; ++e) EXPECT_NEAR(dih[std::size_t(e)], 90.0, 1e-12);
+  for (int e = 3; e < 6; ++e) EXPECT_NEAR(dih[std::size_t(e)], std::acos(1 / std::sqrt(3.0)) * 180 / M_PI, 1e-12);
+  EXPECT_NEAR(tet_radius_ratio({0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}),
+              3 / (3 + std::sqrt(3.0)) / (std::sqrt(3.0) / 2), 1e-12);
+  EXPECT_EQ(tet_radius_ratio({0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}), 0.0);  // flat
+}
+
+// The unit cube as 6 tetrahedra around the diagonal 0-7 (Kuhn), material 1
+// for x > y, else 2, and its 12 boundary triangles.
+LabelledTets kuhn_cube() {
+  LabelledTets t;
+  for (int k = 0; k < 8; ++k) t.vertices.push_back({double(k & 1), double((k >> 1) & 1), double(k >> 2)});
+  t.tets = {{0, 1, 3, 7}, {0, 1, 7, 5}, {0, 2, 7, 3}, {0, 2, 6, 7}, {0, 4, 5, 7}, {0, 4, 7, 6}};
+  for (auto& c : t.tets) {
+    const Vec3 &a = t.vertices[std::size_t(c[0])], &b = t.vertices[std::size_t(c[1])],
+               &d = t.vertices[std::size_t(c[2])], &e = t.vertices[std::size_t(c[3])];
+    if (dot(b - a, cross(d - a, e - a)) < 0) std::swap(c[2], c[3]);
+    const Vec3 centre = (a + b + d + e) / 4.0;
+    t.materials.push_back(centre.x > centre.y ? 1 : 2);
+  }
+  // Each cube face is split by its diagonal through corner 0 or 7.
+  t.triangles = {{0, 3, 1}, {0, 2, 3}, {4, 5, 7}, {4, 7, 6}, {0, 1, 5}, {0, 5, 4},
+                 {2, 7, 3}, {2, 6, 7}, {0, 6, 2}, {0, 4, 6}, {1, 3, 7}, {1, 7, 5}};
+  t.triangle_labels.assign(t.triangles.size(), {0, 1});
+  return t;
+}
+
+TEST(TetQuality, KuhnCubeIsClosedPositiveAndComplete) {
+  LabelledTets t = kuhn_cube();
+  // The interface x = y (the plane through 0, 3, 4, 7) is the two faces
+  // (0, 3, 7) and (0, 4, 7) between materials 1 and 2: listed too.
+  t.triangles.push_back({0, 3, 7});
+  t.triangles.push_back({0, 7, 4});
+  t.triangle_labels.push_back({1, 2});
+  t.triangle_labels.push_back({1, 2});
+  const TetQuality q = tet_quality(t);
+  EXPECT_EQ(q.overall.tets, 6u);
+  EXPECT_NEAR(q.overall.volume, 1.0, 1e-14);
+  EXPECT_NEAR(q.materials.at(1).volume, 0.5, 1e-14);
+  EXPECT_NEAR(q.materials.at(2).volume, 0.5, 1e-14);
+  EXPECT_EQ(q.overall.non_positive, 0u);
+  EXPECT_EQ(q.boundary_faces, 12u);
+  EXPECT_EQ(q.interface_faces, 2u);
+  EXPECT_EQ(q.boundary_nonmanifold_edges, 0u);
+  EXPECT_EQ(q.triangles_missing, 0u);
+  EXPECT_EQ(q.triangles_extra, 0u);
+  // Kuhn tetrahedra: dihedral angles 45°, 60° and 90° only; ρ the same for all.
+  EXPECT_NEAR(q.overall.dihedral_min, 45.0, 1e-9);
+  EXPECT_NEAR(q.overall.dihedral_max, 90.0, 1e-9);
+  EXPECT_EQ(q.overall.under_10, 0u);
+  EXPECT_NEAR(q.overall.rr_min, q.overall.rr_mean, 1e-12);
+  EXPECT_TRUE(check_tet_requirements(q, "positive,boundary_manifold,triangles_match,min_dihedral>=45,"
+                                        "share_under_10<=0")
+                  .empty());
+  EXPECT_EQ(check_tet_requirements(q, "min_dihedral>=50").size(), 1u);
+  EXPECT_THROW(check_tet_requirements(q, "watertight"), UsageError);
+}
+
+TEST(TetQuality, FindsAnInvertedTetMissingTrianglesAndANonManifoldBoundary) {
+  LabelledTets t = kuhn_cube();  // without the interface triangles: 2 missing
+  std::swap(t.tets[0][0], t.tets[0][1]);
+  const TetQuality q = tet_quality(t);
+  EXPECT_EQ(q.overall.non_positive, 1u);
+  EXPECT_EQ(q.triangles_missing, 2u);
+  EXPECT_EQ(check_tet_requirements(q, "positive,triangles_match").size(), 2u);
+  t = kuhn_cube();
+  t.tets.pop_back();  // a notch: two listed triangles are no boundary face now
+  t.materials.pop_back();
+  const TetQuality h = tet_quality(t);
+  EXPECT_EQ(h.boundary_nonmanifold_edges, 0u);  // a boundary is always closed, here manifold too
+  EXPECT_EQ(h.triangles_extra, 2u);
+  EXPECT_EQ(h.triangles_missing, 3u);  // the notch's two inner faces, and the interface (0, 3, 7) left
+  // Two tetrahedra sharing one edge only: that edge has 4 boundary faces.
+  LabelledTets e;
+  e.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 1, 1}, {2, 1, 1}};
+  e.tets = {{0, 1, 2, 3}, {0, 1, 5, 4}};
+  for (auto& c : e.tets) {
+    const Vec3 &a = e.vertices[std::size_t(c[0])], &b = e.vertices[std::size_t(c[1])],
+               &d = e.vertices[std::size_t(c[2])], &f = e.vertices[std::size_t(c[3])];
+    if (dot(b - a, cross(d - a, f - a)) < 0) std::swap(c[2], c[3]);
+  }
+  e.materials = {1, 1};
+  const TetQuality n = tet_quality(e);
+  EXPECT_EQ(n.boundary_faces, 8u);
+  EXPECT_EQ(n.boundary_nonmanifold_edges, 1u);
+  EXPECT_EQ(check_tet_requirements(n, "boundary_manifold").size(), 1u);
+}
+
+TEST(TetQuality, MeditRoundTrip) {
+  const LabelledTets t = kuhn_cube();
+  const std::string path = test::temp_dir() + "/kuhn.mesh";
+  write_medit_tets(t, path);
+  ASSERT_TRUE(medit_has_tetrahedra(path));
+  const LabelledTets r = read_medit_tets(path);
+  ASSERT_EQ(r.tets.size(), 6u);
+  EXPECT_EQ(r.materials, t.materials);
+  EXPECT_EQ(r.triangles.size(), 12u);
+  EXPECT_NEAR(tet_quality(r).overall.volume, 1.0, 1e-12);
+}
+
+}  // namespace
+}  // namespace pm
