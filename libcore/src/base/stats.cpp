@@ -24,7 +24,7 @@ void add_seconds(const std::string& name, double s) {
   sec[name] = prev + s;
 }
 
-ScopedStage::ScopedStage(std::string name) : name_(std::move(name)), start_(now()) {}
+ScopedStage::ScopedStage(std::string name) : name_(std::move(name)), start_(now()) { check_cancelled(); }
 
 ScopedStage::~ScopedStage() {
   const double s = now() - start_;
