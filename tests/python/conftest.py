@@ -32,3 +32,42 @@ def edge_counts(triangles):
     e = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1)
     _, counts = np.unique(e, axis=0, return_counts=True)
     return counts
+
+
+def read_ply(path):
+    """(vertices V x 3, faces F x 3, face properties {name: F}) of a binary
+    little-endian PLY as particlemesh writes it (float vertex properties,
+    uchar-int face lists, int face properties). meshio 7 cannot read PLY face
+    properties, hence this small reader."""
+    types = {"float": "<f4", "double": "<f8", "int": "<i4", "uchar": "u1", "uint": "<u4"}
+    with open(path, "rb") as f:
+        assert f.readline().strip() == b"ply"
+        elements, cur = [], None
+        while True:
+            line = f.readline().decode().split()
+            if line[0] == "end_header":
+                break
+            if line[0] == "format":
+                assert line[1] == "binary_little_endian"
+            if line[0] == "element":
+                cur = (line[1], int(line[2]), [])
+                elements.append(cur)
+            if line[0] == "property":
+                cur[2].append(("list", line[2], line[3], line[4]) if line[1] == "list" else (types[line[1]], line[2]))
+        data = f.read()
+    off, verts, faces, props = 0, None, None, {}
+    for name, count, fields in elements:
+        if name == "vertex":
+            dt = np.dtype([(p[1], p[0]) for p in fields])
+            v = np.frombuffer(data, dt, count, off)
+            off += dt.itemsize * count
+            verts = np.stack([v["x"], v["y"], v["z"]], axis=1).astype(np.float64)
+        elif name == "face":
+            assert fields[0][:3] == ("list", "uchar", "int")
+            dt = np.dtype([("n", "u1"), ("idx", "<i4", (3,))] + [(p[1], p[0]) for p in fields[1:]])
+            fa = np.frombuffer(data, dt, count, off)
+            off += dt.itemsize * count
+            assert np.all(fa["n"] == 3)
+            faces = fa["idx"].astype(np.int64)
+            props = {p[1]: fa[p[1]].astype(np.int64) for p in fields[1:]}
+    return verts, faces, props

@@ -2,12 +2,13 @@
 # the Python API, checked against exact geometry (a sphere; a cube of two
 # materials whose interface is a plane), plus tetrahedra and meshio.
 import math
+import os
 
 import numpy as np
 import pytest
 
 import particlemesh as pm
-from conftest import edge_counts, sphere_distance, triangle_areas, two_material_cube
+from conftest import edge_counts, read_ply, sphere_distance, triangle_areas, two_material_cube
 
 H, R, N = 0.5, 4.0, 25
 ORIGIN = (-6.0, -6.0, -6.0)
@@ -113,3 +114,48 @@ def test_materials_meshio(cube):
     assert isinstance(mm, meshio.Mesh)
     assert np.array_equal(mm.cell_data["label_a"][0], m.pairs[:, 0])
     assert np.all(mm.cell_data["label_a"][0] < mm.cell_data["label_b"][0])
+
+
+# --- the library pipelines give what the Makefiles give -------------------------
+
+def _make(target, **variables):
+    import shutil
+    import subprocess
+    src = os.environ.get("PM_SOURCE_DIR")
+    bindir = os.environ.get("PM_BIN")
+    if not src or not bindir or not os.path.exists(os.path.join(bindir, "tetlabel")) or not shutil.which("make"):
+        pytest.skip("needs make and the tools (PM_SOURCE_DIR, PM_BIN, set by CTest)")
+    args = ["make", "-s", "-f", os.path.join(src, "Makefile.pipeline"), target, f"BIN={bindir}"]
+    args += [f"{k}={v}" for k, v in variables.items()]
+    r = subprocess.run(args, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+
+
+def _nifti(path, array, spacing, origin):
+    nib = pytest.importorskip("nibabel")
+    affine = np.diag([spacing, spacing, spacing, 1.0])
+    affine[:3, 3] = origin
+    img = nib.Nifti1Image(array, affine)
+    img.set_sform(affine, code=1)
+    nib.save(img, str(path))
+
+
+def test_mesh_surface_is_makefile_ch5(tmp_path):
+    d = sphere_distance(n=N, h=H, radius=R, origin=ORIGIN)
+    _nifti(tmp_path / "ball.nii", (d < 0).astype(np.uint8), H, ORIGIN)
+    _make("ch5", INPUT=tmp_path / "ball.nii", OUT=tmp_path / "out")
+    points, triangles, _ = read_ply(tmp_path / "out" / "surface.ply")
+    m = pm.mesh_surface(pm.read_volume(tmp_path / "ball.nii"), progress=False)
+    # Same triangles; vertices equal up to the PLY's float32 rounding.
+    assert np.array_equal(triangles, m.triangles)
+    np.testing.assert_allclose(points, m.points, rtol=0, atol=1e-6 * np.abs(m.points).max())
+
+
+def test_mesh_materials_is_makefile_ch6(tmp_path):
+    _nifti(tmp_path / "cube.nii", two_material_cube().astype(np.int16), 1.0, (0.0, 0.0, 0.0))
+    _make("ch6", INPUT=tmp_path / "cube.nii", OUT=tmp_path / "out")
+    points, triangles, props = read_ply(tmp_path / "out" / "interfaces.ply")
+    m = pm.mesh_materials(pm.read_volume(tmp_path / "cube.nii"), progress=False)
+    assert np.array_equal(triangles, m.triangles)
+    assert np.array_equal(np.stack([props["label_a"], props["label_b"]], axis=1), m.pairs)
+    np.testing.assert_allclose(points, m.points, rtol=0, atol=1e-6 * np.abs(m.points).max())

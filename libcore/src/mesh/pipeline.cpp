@@ -17,6 +17,7 @@
 #include "pm/ops/gradlimit.h"
 #include "pm/ops/labels.h"
 #include "pm/ops/mcinit.h"
+#include "pm/ops/meshstats_materials.h"
 #include "pm/ops/medialaxis.h"
 #include "pm/ops/morphology.h"
 #include "pm/ops/multiparticles.h"
