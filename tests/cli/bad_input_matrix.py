@@ -10,8 +10,9 @@ Each row runs one tool on one bad input and requires:
     of the form "<tool>: error: ..." or "<tool>: usage error: ...", naming the
     offending file or option;
   * nothing left in the output folder (no output, no temporary file).
-Then every tool that writes a file is interrupted with SIGINT and SIGTERM
-mid-run, and must leave the output folder empty.
+Then tools that write one or several files are interrupted with SIGINT and
+SIGTERM at points the test has observed (PM_TEST_HOLD), and must die of the
+signal, say so, and leave the output folder empty.
 Prints one line per failing row and a summary line; exit 0 when all pass.
 """
 import os
@@ -21,6 +22,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 
 BIN, SRC = sys.argv[1], sys.argv[2]
@@ -159,7 +161,7 @@ EXTRA = [
 TIMES = []
 
 
-def run(tool, argv, timeout=60):
+def run(tool, argv, timeout=600):  # a hang guard, far above any row's run time even on a loaded machine
     exe = os.path.join(BIN, tool)
     t0 = time.time()
     p = subprocess.run([exe, "-q"] + argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=timeout)
@@ -215,39 +217,109 @@ for tool, case, argv, code, names in rows:
 
 T1 = time.time()
 # --- interrupted runs leave nothing ------------------------------------------
-# Long-enough runs (several seconds) of three writing tools, signalled at two
-# delays; every tool shares the handler of pm::Tool (libcore/src/cli/run_tool.cpp).
-LONG = [
-    ("volconv", [os.path.join(DATA, "tet.off"), o(".nrrd"), "--sdf", "--voxel", "0.004"]),
-    ("particles", ["--implicit", "torus", "--spacing", "0.02", "-o", o(".ply")]),
-    ("tighten", [MASK, o(".nrrd"), "-r", "1.5", "--upsample", "8"]),  # ~5 s
+# Each run is signalled at a moment the test has seen, not after a guessed
+# delay (issue #23): PM_TEST_HOLD=<point> makes the tool print "test hold at
+# <point>" on stderr and wait there (libcore/include/pm/base/test_hold.h).
+#   stage:<name>  mid-computation, at the start of a named stage;
+#   commit        after the work, every output written as a temporary file and
+#                 none renamed into place: the moment a careless handler would
+#                 leave a half-finished result behind.
+# At "commit" the test first checks that the temporary files really are there
+# (so it would notice a handler that leaves them), then signals, then requires:
+# the run died of the signal, said so on stderr, and left the folder empty.
+# Every tool shares the handler of pm::Tool (libcore/src/cli/run_tool.cpp).
+SEEDS = fx("wedge_seeds.ply")
+if "mcinit" in present:
+    subprocess.run([os.path.join(BIN, "mcinit"), "-q", os.path.join(DATA, "wedges3.nrrd"), SEEDS, "--junctions"],
+                   check=True)
+LONG = [  # tool, argv, hold points, files a whole run writes
+    ("volconv", [TET, o(".nrrd"), "--sdf", "--voxel", "0.05"], ["stage:sdf", "commit"], 1),
+    ("volconv", [SDF, os.path.join(OUT, "result.nhdr")], ["commit"], 2),  # header + detached data file
+    ("particles", ["--implicit", "torus", "--spacing", "0.3", "-o", o(".ply")], ["stage:write", "commit"], 1),
+    ("tighten", [MASK, o(".nrrd"), "-r", "0.5"], ["stage:tighten", "commit"], 1),
+    # interfaces, the surfaces of materials 2 and 3 (1 is the outside), the tetrahedra
+    ("tetlabel", [SEEDS, "--materials", os.path.join(DATA, "wedges3.nrrd"), "-o", o(".ply"),
+                  "--material-surfaces", OUT, "--tets", o(".mesh")], ["stage:label", "commit"], 4),
 ]
-for tool, argv in LONG:
-    if tool not in present:
+HOLD_LIMIT = 600  # seconds a run may take to reach its hold point: a hang guard, not a speed test
+
+
+def wait_for_hold(p, point):
+    """Read stderr until the hold line; return (reached, stderr so far)."""
+    lines = []
+    done = threading.Event()
+
+    def reader():
+        for raw in iter(p.stderr.readline, b""):
+            line = raw.decode("utf-8", "replace")
+            lines.append(line)
+            if "test hold at " + point in line:
+                done.set()
+                return
+        done.set()
+
+    threading.Thread(target=reader, daemon=True).start()
+    done.wait(HOLD_LIMIT)
+    return any("test hold at " + point in l for l in lines), "".join(lines)
+
+
+for tool, argv, points, n_out in LONG:
+    if tool not in present or (tool == "tetlabel" and not os.path.exists(SEEDS)):
         continue
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        for delay in (0.3, 1.0):
+    # an uninterrupted run writes exactly its outputs
+    count += 1
+    rc, err = run(tool, argv, timeout=HOLD_LIMIT)
+    written = sorted(os.listdir(OUT))
+    if rc != 0 or len(written) != n_out or any(f.startswith(".") for f in written):
+        failures.append("%s: a whole run exited %d and wrote %s, expected %d outputs\n    stderr: %s"
+                        % (tool, rc, " ".join(written) or "nothing", n_out, err.strip()[:400]))
+    for f in written:
+        os.remove(os.path.join(OUT, f))
+    for point in points:
+        for sig in (signal.SIGINT, signal.SIGTERM):
             count += 1
+            what = "%s / %s at %s" % (tool, sig.name, point)
+            env = dict(os.environ, PM_TEST_HOLD=point, PM_TEST_HOLD_SECONDS=str(HOLD_LIMIT))
             p = subprocess.Popen([os.path.join(BIN, tool), "-q"] + argv, stdout=subprocess.DEVNULL,
-                                 stderr=subprocess.PIPE)
-            time.sleep(delay)
-            t0 = time.time()
+                                 stderr=subprocess.PIPE, env=env)
+            reached, err = wait_for_hold(p, point)
+            problems = []
+            if not reached:
+                p.kill()
+                rest = p.communicate()[1].decode("utf-8", "replace")
+                failures.append("%s: never reached the hold point (exit %s)\n    stderr: %s"
+                                % (what, p.returncode, (err + rest).strip()[:400]))
+                for f in os.listdir(OUT):
+                    os.remove(os.path.join(OUT, f))
+                continue
+            held = os.listdir(OUT)
+            temps = [f for f in held if f.startswith(".") and ".tmp" in f]
+            if point == "commit" and len(temps) != n_out:
+                problems.append("at the hold %d temporary files, expected %d (%s)" % (len(temps), n_out, " ".join(held)))
+            if len(temps) != len(held):
+                problems.append("outputs in place before the end: %s" % " ".join(sorted(set(held) - set(temps))))
             p.send_signal(sig)
+            t0 = time.time()
             try:
-                _, err = p.communicate(timeout=30)
+                _, rest = p.communicate(timeout=HOLD_LIMIT)
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.communicate()
-                failures.append("%s / %s after %.1fs: did not stop" % (tool, sig.name, delay))
+                failures.append("%s: did not stop" % what)
                 continue
-            TIMES.append((time.time() - t0, "%s stop after %s" % (tool, sig.name)))
+            TIMES.append((time.time() - t0, "%s stop after %s at %s" % (tool, sig.name, point)))
+            rest = rest.decode("utf-8", "replace")
+            if p.returncode != -sig:
+                problems.append("exit %s, expected death by %s" % (p.returncode, sig.name))
+            if "%s: interrupted by %s" % (tool, sig.name) not in rest:
+                problems.append("stderr does not say \"%s: interrupted by %s\"" % (tool, sig.name))
             left = os.listdir(OUT)
-            if p.returncode == 0:
-                failures.append("%s / %s after %.1fs: finished before the signal; make the run longer" % (tool, sig.name, delay))
-            elif left:
-                failures.append("%s / %s after %.1fs: left %s" % (tool, sig.name, delay, " ".join(left)))
+            if left:
+                problems.append("left %s" % " ".join(left))
             for f in left:
                 os.remove(os.path.join(OUT, f))
+            if problems:
+                failures.append("%s: %s\n    stderr: %s" % (what, "; ".join(problems), rest.strip()[:400]))
 
 shutil.rmtree(T, ignore_errors=True)
 if os.environ.get("PM_MATRIX_TIMES"):

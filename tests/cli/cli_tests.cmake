@@ -182,11 +182,11 @@ pm_cli_test(meshstats.seeds_without_component "meshstats: error: .*sphere_points
 #    inputs, unwritable outputs, out-of-range options; SIGINT/SIGTERM mid-run leaves nothing
 add_test(NAME cli.bad_input_matrix COMMAND python3 ${CMAKE_SOURCE_DIR}/tests/cli/bad_input_matrix.py
   $<TARGET_FILE_DIR:volconv> ${CMAKE_SOURCE_DIR})
-set_tests_properties(cli.bad_input_matrix PROPERTIES LABELS cli TIMEOUT 300)
+set_tests_properties(cli.bad_input_matrix PROPERTIES LABELS cli TIMEOUT 1500)
 # == multiparticles (Chapter 6 junction sampling)
 pm_cli_script(multiparticles.wedges multiparticles_test.sh)
 pm_cli_test(multiparticles.help_example "Example:.*multiparticles --materials" $<TARGET_FILE:multiparticles> --help)
 # == Chapter 6: per-label tightening, multi-material tetlabel/meshstats, bad input, the ch6 pipeline
 pm_cli_script(ch6.tools ch6_test.sh)
 pm_cli_script(ch6.pipeline ch6_pipeline_test.sh)
-set_tests_properties(cli.ch6.pipeline PROPERTIES TIMEOUT 120)
+set_tests_properties(cli.ch6.pipeline PROPERTIES TIMEOUT 1500)

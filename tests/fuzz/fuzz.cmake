@@ -30,7 +30,7 @@ add_library(pmfuzzcore STATIC
   libcore/src/field/implicits.cpp
   libcore/src/field/curvature.cpp
   libcore/src/field/sizing.cpp
-  libcore/src/ops/particles.cpp
+  libcore/src/sample/particles.cpp
   tests/fuzz/fuzz_util.cpp
 )
 target_include_directories(pmfuzzcore PUBLIC libcore/include tests/fuzz ${NIFTI_INCLUDE_DIR}/nifti

@@ -5,7 +5,7 @@
 #include "fuzz_util.h"
 #include "pm/field/implicits.h"
 #include "pm/io/mesh.h"
-#include "pm/ops/particles.h"
+#include "pm/sample/particles.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   static const std::unique_ptr<pm::ScalarField> sphere = pm::make_implicit("sphere");

@@ -1,11 +1,11 @@
-#include "pm/ops/baseline.h"
+#include "pm/baseline/baseline.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
 #include "pm/base/error.h"
-#include "pm/ops/tetlabel.h"
+#include "pm/mesh/tetlabel.h"
 
 namespace pm {
 namespace {
@@ -122,6 +122,42 @@ TEST(Baseline, TripleLinesOfTwoBoxes) {
   for (const Vec3& x : l) EXPECT_NEAR(x.x, double(n) / 2 - 0.5, 0.5 + 1e-12);
   EXPECT_GT(l.size(), 4 * (n - 7));
   EXPECT_TRUE(triple_lines(Volume(VoxelType::u8, Dims{4, 4, 4})).empty());
+}
+
+TEST(Baseline, LabelInterfaceAreaOfTwoBoxes) {
+  // Boxes of 5 x 10 x 10 and 5 x 10 x 10 voxels (n = 16: i in [3, 8) and [8, 13)):
+  // the union's surface 2(10*10) + 4(10*10) = 600 voxel faces, the contact square 100.
+  const Volume v = two_boxes(16);
+  EXPECT_NEAR(label_interface_area(v, "boxes"), 700.0 * 2 / 3, 1e-9);
+  EXPECT_THROW(label_interface_area(Volume(VoxelType::u8, Dims{4, 4, 4}), "flat"), InputError);
+}
+
+TEST(Baseline, SizeSearchReachesTheTargetOfAnInverseSquareMesher) {
+  // A mesher whose vertex count is area / size^2 exactly: the search's
+  // update size *= sqrt(N / target) lands on the target in the second run.
+  int runs = 0;
+  auto mesher = [&](const CgalMeshParams& q) {
+    ++runs;
+    CgalMeshResult r;
+    r.surface.vertices.resize(std::size_t(std::lround(4000.0 / (q.facet_size * q.facet_size))));
+    return r;
+  };
+  SizeSearchParams sp;
+  sp.target = 1000;
+  sp.start_size = 1.0;  // 4000 vertices: 300% off
+  sp.tolerance = 0.01;
+  const SizeSearchResult r = cgal_size_search(mesher, CgalMeshParams{}, sp);
+  EXPECT_EQ(runs, 2);
+  ASSERT_EQ(r.tries.size(), 2u);
+  EXPECT_NEAR(r.facet_size, 2.0, 1e-12);
+  EXPECT_EQ(r.best.surface.vertices.size(), 1000u);
+  EXPECT_LE(r.deviation, 0.01);
+  // Without a target: one run at the given size.
+  runs = 0;
+  CgalMeshParams fixed;
+  fixed.facet_size = 4.0;
+  EXPECT_EQ(cgal_size_search(mesher, fixed, SizeSearchParams{}).best.surface.vertices.size(), 250u);
+  EXPECT_EQ(runs, 1);
 }
 
 TEST(Baseline, CgalLabelsTwoBoxes) {

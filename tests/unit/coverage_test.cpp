@@ -1,4 +1,4 @@
-#include "pm/ops/coverage.h"
+#include "pm/mesh/coverage.h"
 
 #include <gtest/gtest.h>
 

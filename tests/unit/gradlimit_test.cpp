@@ -1,4 +1,4 @@
-#include "pm/ops/gradlimit.h"
+#include "pm/volume/gradlimit.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "pm/ops/labels.h"
+#include "pm/volume/labels.h"
 
 #include <gtest/gtest.h>
 

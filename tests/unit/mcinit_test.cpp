@@ -1,4 +1,4 @@
-#include "pm/ops/mcinit.h"
+#include "pm/volume/mcinit.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "pm/ops/medialaxis.h"
+#include "pm/volume/medialaxis.h"
 
 #include <gtest/gtest.h>
 
@@ -7,7 +7,7 @@
 #include <functional>
 
 #include "pm/base/error.h"
-#include "pm/ops/tighten.h"
+#include "pm/volume/tighten.h"
 
 namespace pm {
 namespace {

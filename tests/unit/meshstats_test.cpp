@@ -1,4 +1,4 @@
-#include "pm/ops/meshstats.h"
+#include "pm/mesh/meshstats.h"
 
 #include <gtest/gtest.h>
 

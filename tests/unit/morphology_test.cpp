@@ -1,4 +1,4 @@
-#include "pm/ops/morphology.h"
+#include "pm/volume/morphology.h"
 
 #include <gtest/gtest.h>
 

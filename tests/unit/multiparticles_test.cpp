@@ -1,4 +1,4 @@
-#include "pm/ops/multiparticles.h"
+#include "pm/sample/multiparticles.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>

@@ -1,4 +1,4 @@
-#include "pm/ops/particles.h"
+#include "pm/sample/particles.h"
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Surface_mesh.h>

@@ -5,7 +5,7 @@
 #include <tuple>
 
 #include "pm/base/error.h"
-#include "pm/ops/render.h"
+#include "pm/render/render.h"
 
 namespace pm {
 namespace {

@@ -1,4 +1,4 @@
-#include "pm/ops/sizingfield.h"
+#include "pm/volume/sizingfield.h"
 
 #include <gtest/gtest.h>
 
@@ -7,7 +7,7 @@
 #include <functional>
 
 #include "pm/base/error.h"
-#include "pm/ops/medialaxis.h"
+#include "pm/volume/medialaxis.h"
 
 namespace pm {
 namespace {

@@ -1,4 +1,4 @@
-#include "pm/ops/surface_improve.h"
+#include "pm/mesh/surface_improve.h"
 
 #include <gtest/gtest.h>
 
@@ -7,9 +7,9 @@
 
 #include "pm/base/error.h"
 #include "pm/field/implicits.h"
-#include "pm/ops/meshstats.h"
-#include "pm/ops/particles.h"
-#include "pm/ops/tetlabel.h"
+#include "pm/mesh/meshstats.h"
+#include "pm/sample/particles.h"
+#include "pm/mesh/tetlabel.h"
 
 namespace pm {
 namespace {

@@ -1,4 +1,4 @@
-#include "pm/ops/tetlabel_materials.h"
+#include "pm/mesh/tetlabel_materials.h"
 
 #include <gtest/gtest.h>
 
@@ -7,8 +7,8 @@
 #include <set>
 
 #include "pm/base/error.h"
-#include "pm/ops/meshstats_materials.h"
-#include "pm/ops/surface_improve.h"
+#include "pm/mesh/meshstats_materials.h"
+#include "pm/mesh/surface_improve.h"
 
 namespace pm {
 namespace {

@@ -1,4 +1,4 @@
-#include "pm/ops/tetlabel.h"
+#include "pm/mesh/tetlabel.h"
 
 #include <gtest/gtest.h>
 

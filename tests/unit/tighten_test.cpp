@@ -1,4 +1,4 @@
-#include "pm/ops/tighten.h"
+#include "pm/volume/tighten.h"
 
 #include <gtest/gtest.h>
 

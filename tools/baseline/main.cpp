@@ -9,41 +9,27 @@
 #include "pm/cli/run_tool.h"
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
-#include "pm/ops/baseline.h"
-#include "pm/ops/tetlabel.h"
+#include "pm/baseline/baseline.h"
+#include "pm/mesh/tetlabel.h"
 
 namespace {
 
-// Mesh with CGAL at a given size, or search the size that gives `target`
-// vertices (within `tol`): N ~ 1/size^2, so size *= sqrt(N / target).
-template <class Run>
-pm::CgalMeshResult sized_run(const Run& run, pm::CgalMeshParams p, std::size_t target, double start_size,
-                             double tol, int max_runs, pm::Json& st) {
-  if (target == 0) return run(p);
-  p.facet_size = start_size;  // a given --distance stays fixed; by default it is size / 4 at every size
-  pm::CgalMeshResult best;
-  double best_err = 1e300;
-  pm::Json tries = pm::Json::array();
-  for (int k = 0; k < max_runs; ++k) {
-    pm::CgalMeshResult r = run(p);
-    const double n = double(r.surface.vertices.size());
-    const double err = std::abs(n / double(target) - 1);
-    tries.push_back({{"facet_size", p.facet_size}, {"vertices", r.surface.vertices.size()}, {"seconds", r.seconds}});
-    pm::info("facet size " + std::to_string(p.facet_size) + ": " + std::to_string(r.surface.vertices.size()) +
-             " vertices (target " + std::to_string(target) + ")");
-    if (err < best_err) {
-      best_err = err;
-      best = std::move(r);
-      st["parameters"]["facet_size"] = p.facet_size;
-    }
-    if (err <= tol) break;
-    p.facet_size *= std::pow(n / double(target), 0.5);
+// The size search's record in the stats, and a warning when it missed.
+pm::CgalMeshResult record(pm::SizeSearchResult r, const pm::SizeSearchParams& sp, pm::Json& st) {
+  if (sp.target > 0) {
+    pm::Json tries = pm::Json::array();
+    for (const auto& t : r.tries)
+      tries.push_back({{"facet_size", t.facet_size}, {"vertices", t.vertices}, {"seconds", t.seconds}});
+    st["size_search"] = tries;
+    st["parameters"]["facet_size"] = r.facet_size;
+    if (r.deviation > sp.tolerance)
+      pm::warn("vertex count " + std::to_string(r.best.surface.vertices.size()) + " is " +
+               std::to_string(int(std::lround(100 * r.deviation))) + "% off the target " + std::to_string(sp.target));
   }
-  st["size_search"] = tries;
-  if (best_err > tol)
-    pm::warn("vertex count " + std::to_string(best.surface.vertices.size()) + " is " +
-             std::to_string(int(std::lround(100 * best_err))) + "% off the target " + std::to_string(target));
-  return best;
+  st["counts"]["c3t3_vertices"] = r.best.c3t3_vertices;
+  st["counts"]["parallel"] = r.best.parallel;
+  st["seconds_final_run"] = r.best.seconds;
+  return std::move(r.best);
 }
 
 }  // namespace
@@ -110,35 +96,11 @@ int main(int argc, char** argv) {
         pm::ScopedStage s("read");
         v = pm::read_volume(fo.input);
       }
-      double start = size;
-      if (vertices > 0) {
-        // Interface area ~ 2/3 of the voxel faces between different labels.
-        const pm::Dims d = v.dims();
-        const double sp[3] = {v.geometry().spacing(0), v.geometry().spacing(1), v.geometry().spacing(2)};
-        double area = 0;
-        const std::size_t step[3] = {1, d.nx, d.nx * d.ny};
-        for (std::size_t k = 0; k < d.nz; ++k)
-          for (std::size_t j = 0; j < d.ny; ++j)
-            for (std::size_t i = 0; i < d.nx; ++i) {
-              const std::size_t idx = v.index(i, j, k);
-              const std::size_t ijk[3] = {i, j, k};
-              for (int a = 0; a < 3; ++a)
-                if (ijk[a] + 1 < d[a] && v.get(idx) != v.get(idx + step[a]))
-                  area += sp[(a + 1) % 3] * sp[(a + 2) % 3];
-            }
-        if (area == 0) throw pm::InputError(pm::quote(fo.input) + ": a single label; expected a label map with at least two labels");
-        start = pm::facet_size_for_vertices(area * 2 / 3, vertices);
-      }
-      pm::CgalMeshResult r;
-      {
-        pm::ScopedStage s("cgal");
-        r = sized_run([&](const pm::CgalMeshParams& q) { return pm::cgal_labels(v, q); }, p, vertices, start, tol,
-                      max_runs, st);
-      }
-      m = std::move(r.surface);
-      st["counts"]["c3t3_vertices"] = r.c3t3_vertices;
-      st["counts"]["parallel"] = r.parallel;
-      st["seconds_final_run"] = r.seconds;
+      pm::SizeSearchParams sp{vertices, size, tol, max_runs};
+      if (vertices > 0) sp.start_size = pm::facet_size_for_vertices(pm::label_interface_area(v, fo.input), vertices);
+      pm::ScopedStage s("cgal");
+      m = record(pm::cgal_size_search([&](const pm::CgalMeshParams& q) { return pm::cgal_labels(v, q); }, p, sp),
+                 sp, st).surface;
     } else {
       pm::LoadedField lf;
       pm::Volume v;
@@ -154,18 +116,15 @@ int main(int argc, char** argv) {
         pm::ScopedStage s("marching_cubes");
         m = pm::marching_cubes_baseline(v, lf.iso, below);
       } else {
-        double start = size;
-        if (vertices > 0) start = pm::facet_size_for_vertices(pm::mesh_area(pm::marching_cubes_baseline(v, lf.iso, below)), vertices);
-        pm::CgalMeshResult r;
-        {
-          pm::ScopedStage s("cgal");
-          r = sized_run([&](const pm::CgalMeshParams& q) { return pm::cgal_isosurface(v, lf.iso, below, q); }, p,
-                        vertices, start, tol, max_runs, st);
-        }
-        m = std::move(r.surface);
-        st["counts"]["c3t3_vertices"] = r.c3t3_vertices;
-        st["counts"]["parallel"] = r.parallel;
-        st["seconds_final_run"] = r.seconds;
+        pm::SizeSearchParams sp{vertices, size, tol, max_runs};
+        if (vertices > 0)
+          sp.start_size =
+              pm::facet_size_for_vertices(pm::mesh_area(pm::marching_cubes_baseline(v, lf.iso, below)), vertices);
+        pm::ScopedStage s("cgal");
+        m = record(pm::cgal_size_search(
+                       [&](const pm::CgalMeshParams& q) { return pm::cgal_isosurface(v, lf.iso, below, q); }, p, sp),
+                   sp, st)
+                .surface;
       }
     }
     const pm::MeshTopology t = pm::mesh_topology(m);

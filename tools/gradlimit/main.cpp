@@ -7,7 +7,7 @@
 #include "pm/base/stats.h"
 #include "pm/cli/run_tool.h"
 #include "pm/io/volume_io.h"
-#include "pm/ops/gradlimit.h"
+#include "pm/volume/gradlimit.h"
 
 int main(int argc, char** argv) {
   pm::Tool tool("gradlimit",

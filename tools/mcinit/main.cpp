@@ -4,10 +4,11 @@
 #include "pm/base/error.h"
 #include "pm/base/log.h"
 #include "pm/base/stats.h"
+#include "pm/cli/field_options.h"
 #include "pm/cli/run_tool.h"
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
-#include "pm/ops/mcinit.h"
+#include "pm/volume/mcinit.h"
 
 int main(int argc, char** argv) {
   pm::Tool tool("mcinit",
@@ -24,9 +25,7 @@ int main(int argc, char** argv) {
   tool.app.add_option("input", in, "Input volume (grey values, distance field, mask; label map with --junctions)")
       ->required();
   tool.app.add_option("output", out, "Seed points, PLY (vertices, normals, scalars)")->required();
-  tool.app.add_option("--kernel", kernel, "Reconstruction: bspline, catmull-rom, or mix (value Catmull-Rom, "
-                                          "derivatives B-spline)")
-      ->capture_default_str();
+  pm::add_kernel_option(tool.app, kernel);
   tool.app.add_option("--decimate", p.decimate, "Keep about one seed per K^3 cells (per component / label set)")
       ->capture_default_str();
   tool.app.add_option("--project-steps", p.project_steps, "Newton steps onto the isosurface (0 = raw edge points)")
@@ -38,14 +37,7 @@ int main(int argc, char** argv) {
     if (out.size() < 4 || out.substr(out.size() - 4) != ".ply")
       throw pm::UsageError("output " + pm::quote(out) + ": expected a .ply file");
     if (p.decimate < 1) throw pm::UsageError("--decimate " + std::to_string(p.decimate) + "; expected >= 1");
-    if (kernel == "bspline")
-      p.field = {};
-    else if (kernel == "catmull-rom")
-      p.field = {pm::KernelType::catmull_rom, pm::KernelType::catmull_rom};
-    else if (kernel == "mix")
-      p.field = pm::VolumeFieldParams::chapter5_mix();
-    else
-      throw pm::UsageError("--kernel \"" + kernel + "\"; expected bspline, catmull-rom or mix");
+    p.field = pm::kernel_params(kernel);
     if (junctions == (iso->count() > 0))
       throw pm::UsageError(junctions ? "--junctions takes no --iso" : "--iso C is required (or --junctions)");
     st["inputs"] = {in};

@@ -11,7 +11,7 @@
 #include "pm/field/distance.h"
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
-#include "pm/ops/medialaxis.h"
+#include "pm/volume/medialaxis.h"
 
 namespace {
 // A number as a user typed it (no trailing zeros), for messages.

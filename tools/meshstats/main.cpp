@@ -12,9 +12,9 @@
 #include "pm/cli/run_tool.h"
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
-#include "pm/ops/coverage.h"
-#include "pm/ops/meshstats.h"
-#include "pm/ops/meshstats_materials.h"
+#include "pm/mesh/coverage.h"
+#include "pm/mesh/meshstats.h"
+#include "pm/mesh/meshstats_materials.h"
 
 namespace {
 void print_table(const pm::MeshQuality& q) {

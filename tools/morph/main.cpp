@@ -7,8 +7,8 @@
 #include "pm/base/stats.h"
 #include "pm/cli/run_tool.h"
 #include "pm/io/volume_io.h"
-#include "pm/ops/labels.h"
-#include "pm/ops/morphology.h"
+#include "pm/volume/labels.h"
+#include "pm/volume/morphology.h"
 
 namespace {
 

@@ -14,8 +14,8 @@
 #include "pm/field/sizing.h"
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
-#include "pm/ops/mcinit.h"
-#include "pm/ops/multiparticles.h"
+#include "pm/volume/mcinit.h"
+#include "pm/sample/multiparticles.h"
 
 namespace {
 

@@ -15,7 +15,7 @@
 #include "pm/field/volume_field.h"
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
-#include "pm/ops/particles.h"
+#include "pm/sample/particles.h"
 
 namespace {
 

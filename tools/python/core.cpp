@@ -27,7 +27,7 @@
 #include "pm/field/volume_field.h"
 #include "pm/io/volume_io.h"
 #include "pm/mesh/pipeline.h"
-#include "pm/ops/particles.h"
+#include "pm/sample/particles.h"
 
 namespace py = pybind11;
 

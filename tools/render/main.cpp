@@ -8,7 +8,7 @@
 #include "pm/cli/run_tool.h"
 #include "pm/io/mesh.h"
 #include "pm/io/png.h"
-#include "pm/ops/render.h"
+#include "pm/render/render.h"
 
 int main(int argc, char** argv) {
   pm::Tool tool("render",

@@ -9,8 +9,8 @@
 #include "pm/cli/run_tool.h"
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
-#include "pm/ops/medialaxis.h"
-#include "pm/ops/sizingfield.h"
+#include "pm/volume/medialaxis.h"
+#include "pm/volume/sizingfield.h"
 
 namespace {
 // A number as a user typed it (no trailing zeros), for messages.

@@ -5,14 +5,14 @@
 #include "pm/base/log.h"
 #include "pm/base/stats.h"
 #include "pm/cli/field_options.h"
-#include "pm/ops/meshstats_materials.h"
-#include "pm/ops/surface_improve.h"
+#include "pm/mesh/meshstats_materials.h"
+#include "pm/mesh/surface_improve.h"
 #include "pm/cli/material_options.h"
 #include "pm/cli/run_tool.h"
 #include "pm/io/mesh.h"
 #include "pm/mesh/pipeline.h"
-#include "pm/ops/tetlabel.h"
-#include "pm/ops/tetlabel_materials.h"
+#include "pm/mesh/tetlabel.h"
+#include "pm/mesh/tetlabel_materials.h"
 
 namespace {
 

@@ -5,7 +5,7 @@
 #include "pm/base/stats.h"
 #include "pm/cli/run_tool.h"
 #include "pm/io/volume_io.h"
-#include "pm/ops/tighten.h"
+#include "pm/volume/tighten.h"
 
 int main(int argc, char** argv) {
   pm::Tool tool("tighten",

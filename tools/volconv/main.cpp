@@ -13,7 +13,7 @@
 #include "pm/field/volume_field.h"
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
-#include "pm/ops/labels.h"
+#include "pm/volume/labels.h"
 
 namespace {
 

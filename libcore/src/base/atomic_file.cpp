@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <mutex>
 #include <set>
+#include <vector>
 
 #include "pm/base/error.h"
 
@@ -40,6 +41,23 @@ void unregister_pending(int slot) {
   if (slot >= 0) g_used[slot].store(false);
 }
 std::atomic<unsigned> g_counter{0};
+
+struct Deferred {
+  std::string temp, target;
+  int slot;
+};
+bool g_defer = false;
+std::vector<Deferred> g_deferred;
+std::atomic<bool> g_committing{false};
+std::atomic<int> g_commit_signal{0};
+
+void remove_with_detached_data(const std::string& temp) {
+  std::error_code ec;
+  fs::remove(temp, ec);
+  // detached NRRD data files written beside a .nhdr
+  const std::string ext = file_extension(temp);
+  for (const char* extra : {".raw", ".raw.gz"}) fs::remove(temp.substr(0, temp.size() - ext.size()) + extra, ec);
+}
 }  // namespace
 
 std::string file_extension(const std::string& path) {
@@ -80,21 +98,20 @@ AtomicFile::AtomicFile(const std::string& target) : target_(target) {
 }
 
 AtomicFile::~AtomicFile() {
-  if (!committed_) {
-    std::error_code ec;
-    fs::remove(temp_, ec);
-    // detached NRRD data files written beside a .nhdr
-    for (const char* extra : {".raw", ".raw.gz"}) {
-      const std::string ext = file_extension(temp_);
-      fs::remove(temp_.substr(0, temp_.size() - ext.size()) + extra, ec);
-    }
-  }
+  if (!committed_) remove_with_detached_data(temp_);
   unregister_pending(slot_);
 }
 
 void AtomicFile::commit() {
   std::error_code ec;
   if (!fs::exists(temp_, ec)) throw IoError(quote(target_) + ": nothing was written");
+  if (g_defer) {
+    std::lock_guard<std::mutex> lock(g_mutex);
+    g_deferred.push_back({temp_, target_, slot_});
+    slot_ = -1;  // the deferred list owns the registration now
+    committed_ = true;
+    return;
+  }
   fs::rename(temp_, target_, ec);
   if (ec) throw IoError(quote(target_) + ": cannot rename temporary file into place: " + ec.message());
   committed_ = true;
@@ -104,6 +121,51 @@ void write_atomically(const std::string& target, const std::function<void(const 
   AtomicFile f(target);
   writer(f.temp_path());
   f.commit();
+}
+
+void defer_commits(bool on) { g_defer = on; }
+
+int commit_deferred() {
+  std::vector<Deferred> list;
+  {
+    std::lock_guard<std::mutex> lock(g_mutex);
+    list.swap(g_deferred);
+  }
+  g_committing.store(true);
+  std::size_t i = 0;
+  try {
+    for (; i < list.size(); ++i) {
+      std::error_code ec;
+      fs::rename(list[i].temp, list[i].target, ec);
+      if (ec)
+        throw IoError(quote(list[i].target) + ": cannot rename temporary file into place: " + ec.message());
+      unregister_pending(list[i].slot);
+    }
+  } catch (...) {
+    for (; i < list.size(); ++i) {
+      remove_with_detached_data(list[i].temp);
+      unregister_pending(list[i].slot);
+    }
+    g_committing.store(false);
+    throw;
+  }
+  g_committing.store(false);
+  return g_commit_signal.exchange(0);
+}
+
+void discard_deferred() noexcept {
+  std::lock_guard<std::mutex> lock(g_mutex);
+  for (const Deferred& d : g_deferred) {
+    remove_with_detached_data(d.temp);
+    unregister_pending(d.slot);
+  }
+  g_deferred.clear();
+}
+
+bool hold_signal_during_commit(int sig) noexcept {
+  if (!g_committing.load()) return false;
+  g_commit_signal.store(sig);
+  return true;
 }
 
 void remove_pending_temp_files() noexcept {

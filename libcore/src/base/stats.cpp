@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "pm/base/log.h"
+#include "pm/base/test_hold.h"
 
 namespace pm {
 namespace {
@@ -24,7 +25,10 @@ void add_seconds(const std::string& name, double s) {
   sec[name] = prev + s;
 }
 
-ScopedStage::ScopedStage(std::string name) : name_(std::move(name)), start_(now()) { check_cancelled(); }
+ScopedStage::ScopedStage(std::string name) : name_(std::move(name)), start_(now()) {
+  check_cancelled();
+  test_hold_point("stage:" + name_);
+}
 
 ScopedStage::~ScopedStage() {
   const double s = now() - start_;

@@ -13,10 +13,21 @@ void add_field_options(CLI::App& app, FieldOptions& o) {
   app.add_option("-i,--input", o.input, "Volume holding the field F (NRRD, VDB, MHA, NIfTI, INR); world units from its header");
   app.add_option("--implicit", o.implicit, "Analytic implicit instead of a volume: " + implicit_help());
   app.add_option("--iso", o.iso, "Isovalue c: the surface is F = c, with F < c inside")->capture_default_str();
-  app.add_option("--kernel", o.kernel,
+  add_kernel_option(app, o.kernel);
+}
+
+void add_kernel_option(CLI::App& app, std::string& kernel) {
+  app.add_option("--kernel", kernel,
                  "Reconstruction of volumes: bspline (approximating, C2), catmull-rom (interpolating, C1), "
                  "mix (Catmull-Rom value, B-spline derivatives)")
       ->capture_default_str();
+}
+
+VolumeFieldParams kernel_params(const std::string& kernel) {
+  if (kernel == "bspline") return {KernelType::bspline, KernelType::bspline};
+  if (kernel == "catmull-rom") return {KernelType::catmull_rom, KernelType::catmull_rom};
+  if (kernel == "mix") return VolumeFieldParams::chapter5_mix();
+  throw UsageError("--kernel \"" + kernel + "\" is unknown; expected bspline, catmull-rom or mix");
 }
 
 LoadedField load_field(const FieldOptions& o) {
@@ -28,11 +39,7 @@ LoadedField load_field(const FieldOptions& o) {
     lf.field = make_implicit(o.implicit);
     return lf;
   }
-  VolumeFieldParams vp;
-  if (o.kernel == "bspline") vp = {KernelType::bspline, KernelType::bspline};
-  else if (o.kernel == "catmull-rom") vp = {KernelType::catmull_rom, KernelType::catmull_rom};
-  else if (o.kernel == "mix") vp = VolumeFieldParams::chapter5_mix();
-  else throw UsageError("--kernel \"" + o.kernel + "\" is unknown; expected bspline, catmull-rom or mix");
+  const VolumeFieldParams vp = kernel_params(o.kernel);
   const Volume v = read_volume(o.input);
   require_finite(v, quote(o.input));
   lf.range = value_range(v);

@@ -1,6 +1,7 @@
 #include "pm/cli/run_tool.h"
 
 #include <tbb/global_control.h>
+#include <unistd.h>
 
 #include <csignal>
 #include <cstdio>
@@ -14,14 +15,35 @@
 #include "pm/base/error.h"
 #include "pm/base/log.h"
 #include "pm/base/stats.h"
+#include "pm/base/test_hold.h"
 
 namespace pm {
 
 const char* version_string() { return PM_VERSION; }
 
 namespace {
+// The tool's name for the signal handler's message (no allocation there).
+char g_signal_name[64] = "particlemesh";
+
+void write_stderr(const char* s) noexcept {
+  std::size_t n = 0;
+  while (s[n]) ++n;
+  while (n > 0) {
+    const ssize_t w = ::write(2, s, n);
+    if (w <= 0) return;
+    s += w;
+    n -= std::size_t(w);
+  }
+}
+
 void on_signal(int sig) {
+  // The outputs are being renamed into place: let that finish (commit_deferred
+  // hands the signal back and Tool::run re-raises it).
+  if (hold_signal_during_commit(sig)) return;
   remove_pending_temp_files();
+  write_stderr(g_signal_name);
+  write_stderr(sig == SIGINT ? ": interrupted by SIGINT" : ": interrupted by SIGTERM");
+  write_stderr("; no output written, temporary files removed\n");
   std::signal(sig, SIG_DFL);
   std::raise(sig);
 }
@@ -54,6 +76,7 @@ Tool::Tool(std::string name, std::string description, std::string example)
 
 int Tool::run(int argc, char** argv, const std::function<void()>& body) {
   set_tool_name(name_);
+  std::snprintf(g_signal_name, sizeof g_signal_name, "%s", name_.c_str());
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   try {
@@ -76,20 +99,38 @@ int Tool::run(int argc, char** argv, const std::function<void()>& body) {
   s["seed"] = flags.seed;
   int code = kExitOk;
   Stopwatch total;
+  // Every output of the body is renamed into place together at the end, so a
+  // failed or interrupted run leaves none of them (base/atomic_file.h).
+  defer_commits(true);
+  int late_signal = 0;
   try {
-    body();
+    try {
+      body();
+    } catch (const CheckFailed& e) {
+      // A checker's report is still written: it says why the check failed.
+      std::cerr << name_ << ": check failed: " << e.what() << "\n";
+      code = kExitCheck;
+    }
+    test_hold_point("commit");
+    late_signal = commit_deferred();
   } catch (const UsageError& e) {
+    discard_deferred();
     std::cerr << name_ << ": usage error: " << e.what() << "\n";
     return kExitUsage;
-  } catch (const CheckFailed& e) {
-    std::cerr << name_ << ": check failed: " << e.what() << "\n";
-    code = kExitCheck;
   } catch (const std::bad_alloc&) {
+    discard_deferred();
     std::cerr << name_ << ": error: out of memory\n";
     return kExitFailure;
   } catch (const std::exception& e) {
+    discard_deferred();
     std::cerr << name_ << ": error: " << e.what() << "\n";
     return kExitFailure;
+  }
+  defer_commits(false);
+  if (late_signal != 0) {
+    std::cerr << name_ << ": interrupted while its outputs were renamed into place; they are complete\n";
+    std::signal(late_signal, SIG_DFL);
+    std::raise(late_signal);
   }
   add_seconds("total", total.seconds());
   if (!flags.stats_path.empty()) {

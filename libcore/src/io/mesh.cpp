@@ -23,28 +23,6 @@
 
 namespace pm {
 
-void Mesh::validate(const std::string& what) const {
-  const std::size_t nv = vertices.size(), nf = faces.size();
-  if (!normals.empty() && normals.size() != nv)
-    throw InputError(what + ": " + std::to_string(normals.size()) + " normals for " + std::to_string(nv) +
-                     " vertices; expected one normal per vertex or none");
-  for (const auto& [name, values] : vertex_scalars)
-    if (values.size() != nv)
-      throw InputError(what + ": vertex property " + quote(name) + " has " + std::to_string(values.size()) +
-                       " values; expected " + std::to_string(nv) + " (one per vertex)");
-  for (const auto& [name, values] : face_ints)
-    if (values.size() != nf)
-      throw InputError(what + ": face property " + quote(name) + " has " + std::to_string(values.size()) +
-                       " values; expected " + std::to_string(nf) + " (one per face)");
-  for (std::size_t f = 0; f < nf; ++f)
-    for (int c = 0; c < 3; ++c) {
-      const int i = faces[f][c];
-      if (i < 0 || std::size_t(i) >= nv)
-        throw InputError(what + ": face " + std::to_string(f) + " refers to vertex " + std::to_string(i) +
-                         "; expected an index in [0, " + std::to_string(nv) + ")");
-    }
-}
-
 Mesh mesh_from_polygons(std::vector<Vec3> points, const std::vector<std::vector<std::size_t>>& polygons,
                         const std::string& fn, const std::string& path) {
   if (points.size() > std::size_t(INT_MAX))
@@ -69,23 +47,6 @@ Mesh mesh_from_polygons(std::vector<Vec3> points, const std::vector<std::vector<
     for (std::size_t k = 1; k + 1 < p.size(); ++k) m.faces.push_back({int(p[0]), int(p[k]), int(p[k + 1])});
   }
   return m;
-}
-
-void compute_vertex_normals(Mesh& m) {
-  const std::size_t nv = m.vertices.size();
-  for (std::size_t f = 0; f < m.faces.size(); ++f)
-    for (int i : m.faces[f])
-      if (i < 0 || std::size_t(i) >= nv)
-        throw InputError("compute_vertex_normals: face " + std::to_string(f) + " refers to vertex " +
-                         std::to_string(i) + "; expected an index in [0, " + std::to_string(nv) + ")");
-  std::vector<Vec3> n(m.vertices.size());
-  for (const auto& f : m.faces) {
-    // |cross| is twice the triangle area: an area-weighted sum.
-    const Vec3 c = cross(m.vertices[f[1]] - m.vertices[f[0]], m.vertices[f[2]] - m.vertices[f[0]]);
-    for (int k = 0; k < 3; ++k) n[f[k]] += c;
-  }
-  for (Vec3& v : n) v = normalized(v);
-  m.normals = std::move(n);
 }
 
 // ---------------------------------------------------------------------------

@@ -32,6 +32,24 @@ class AtomicFile {
 /// Convenience: write via `writer(temp_path)` then commit.
 void write_atomically(const std::string& target, const std::function<void(const std::string&)>& writer);
 
+/// Deferred commits: one run, all outputs or none. While deferral is on (the
+/// tools' frame, cli/run_tool, turns it on around each tool's body), commit()
+/// only checks that the temporary file exists and keeps it registered; the
+/// renames happen together in commit_deferred(), with a signal that arrives
+/// meanwhile held back until the last rename is done. An interrupted or failed
+/// run thus leaves none of its outputs, not only none of its temporary files.
+void defer_commits(bool on);
+/// Rename every deferred temporary file onto its target, in commit order.
+/// Returns the number of a SIGINT/SIGTERM that arrived during the renames (0 if
+/// none); the caller re-raises it. \throw IoError when a rename fails (the
+/// rest are then discarded).
+int commit_deferred();
+/// Delete every deferred temporary file (on a failed run).
+void discard_deferred() noexcept;
+/// For the signal handler: true (and the signal kept for commit_deferred) when
+/// the deferred renames are under way, so the handler must return.
+bool hold_signal_during_commit(int sig) noexcept;
+
 /// Remove every registered temporary file (async-signal-unsafe parts avoided;
 /// called from the signal handler installed by run_tool).
 void remove_pending_temp_files() noexcept;

@@ -7,6 +7,7 @@
 
 #include "pm/base/volume.h"
 #include "pm/field/field.h"
+#include "pm/field/volume_field.h"
 
 namespace pm {
 
@@ -19,6 +20,13 @@ struct FieldOptions {
 
 /// Adds -i/--input, --implicit, --iso, --kernel to `app`.
 void add_field_options(CLI::App& app, FieldOptions& o);
+
+/// Adds only --kernel (for tools that read a volume themselves, e.g. mcinit).
+void add_kernel_option(CLI::App& app, std::string& kernel);
+
+/// The reconstruction of a --kernel name: bspline, catmull-rom or mix
+/// (Catmull-Rom value, B-spline derivatives). \throw UsageError otherwise.
+VolumeFieldParams kernel_params(const std::string& kernel);
 
 struct LoadedField {
   std::unique_ptr<ScalarField> field;

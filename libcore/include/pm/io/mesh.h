@@ -1,29 +1,14 @@
 #pragma once
-// Point sets and triangle (or polygon) meshes with named per-vertex scalar
-// properties and per-face integer properties. A point set is a Mesh with no
-// faces.
+// Reading and writing meshes and point sets (the Mesh type: pm/base/mesh.h).
 #include <array>
 #include <map>
 #include <string>
 #include <vector>
 
+#include "pm/base/mesh.h"
 #include "pm/base/vec.h"
 
 namespace pm {
-
-struct Mesh {
-  std::vector<Vec3> vertices;                 ///< #V, world units
-  std::vector<Vec3> normals;                  ///< #V or empty
-  std::vector<std::array<int, 3>> faces;      ///< #F triangles (vertex indices)
-  /// Per-vertex scalar properties, each #V long, written in name order.
-  std::map<std::string, std::vector<double>> vertex_scalars;
-  /// Per-face integer properties, each #F long.
-  std::map<std::string, std::vector<int>> face_ints;
-
-  bool has_normals() const { return !normals.empty(); }
-  /// \throw InputError when sizes are inconsistent or a face index is out of range.
-  void validate(const std::string& what) const;
-};
 
 struct MeshWriteParams {
   bool binary = true;  ///< PLY/STL: binary (default) or ASCII
@@ -51,10 +36,5 @@ void write_mesh(const Mesh& m, const std::string& path, const MeshWriteParams& p
 Mesh read_ply(const std::string& path);
 void write_ply(const Mesh& m, const std::string& path, bool binary = true);
 
-/// Set m.normals to the area-weighted average of the normals of the faces
-/// around each vertex (unit length; follows the faces' winding). Vertices in
-/// no face, or only in degenerate faces, get (0,0,0).
-/// \throw InputError when a face index is out of range.
-void compute_vertex_normals(Mesh& m);
 
 }  // namespace pm

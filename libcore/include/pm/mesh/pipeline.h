@@ -17,10 +17,11 @@
 #include "pm/base/volume.h"
 #include "pm/field/field.h"
 #include "pm/field/materials.h"
-#include "pm/io/mesh.h"
-#include "pm/ops/surface_improve.h"
-#include "pm/ops/tetlabel.h"
-#include "pm/ops/tetlabel_materials.h"
+#include "pm/base/mesh.h"
+#include "pm/mesh/topology.h"
+#include "pm/mesh/surface_improve.h"
+#include "pm/mesh/tetlabel.h"
+#include "pm/mesh/tetlabel_materials.h"
 
 namespace pm {
 

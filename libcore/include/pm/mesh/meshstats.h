@@ -1,0 +1,61 @@
+#pragma once
+// Quality report for a triangle mesh (SPEC §5 "Quality measures"): radius
+// ratio, angles, valence, edge length against a sizing field, topology,
+// self-intersections and distance to the isosurface it approximates.
+#include <string>
+#include <vector>
+
+#include "pm/base/stats.h"
+#include "pm/field/field.h"
+#include "pm/field/sizing.h"
+#include "pm/io/mesh.h"
+#include "pm/mesh/topology.h"
+
+namespace pm {
+
+struct MeshQualityParams {
+  const ScalarField* field = nullptr;  ///< surface F = iso to measure distances to (optional)
+  double iso = 0;
+  const SizingField* sizing = nullptr;  ///< target edge length h(x), world units (optional)
+  bool self_intersections = true;       ///< run CGAL's self-intersection test (manifold meshes only)
+};
+
+struct MeshQuality {
+  std::size_t vertices = 0, faces = 0;
+  // Radius ratio 2 r_in / r_circ: 1 equilateral, 0 degenerate.
+  double rr_min = 0, rr_mean = 0;
+  std::vector<std::size_t> rr_histogram;  ///< 10 bins over [0, 1]
+  double min_angle_deg = 0, max_angle_deg = 0;
+  // Valence (number of edge neighbours) over vertices used by faces.
+  std::vector<std::size_t> valence_histogram;  ///< index = valence (capped at 15)
+  double valence6_share = 0, valence_outside_5_7_share = 0;
+  // Edge length / h (mean of h at the endpoints); only with a sizing field.
+  bool has_sizing = false;
+  double edge_h_max = 0, edge_h_mean = 0, edge_le_2h_share = 0;
+  // Distance to the isosurface (Newton projection), world units; only with a field.
+  bool has_field = false;
+  double dist_vertex_max = 0, dist_vertex_mean = 0, dist_centroid_max = 0, dist_centroid_mean = 0;
+  std::size_t dist_failed = 0;  ///< points whose projection did not converge (left out of the above)
+  MeshTopology topology;
+  int self_intersecting_pairs = -1;  ///< -1: not tested (non-manifold mesh or disabled)
+  double edge_length_mean = 0;
+};
+
+MeshQuality mesh_quality(const Mesh& m, const MeshQualityParams& p = {});
+
+/// JSON object with every measure (keys as in MeshQuality, topology nested).
+Json to_json(const MeshQuality& q);
+
+/// Check `requirements`, a comma-separated list such as
+/// "rr_min>=0.3,rr_mean>=0.94,valence6>=0.65,watertight,manifold,genus=0,no_self_intersections".
+/// Returns the failed ones (empty = all met). \throw UsageError for an unknown key.
+std::vector<std::string> check_requirements(const MeshQuality& q, const std::string& requirements);
+
+/// Number of intersecting pairs of non-adjacent triangles (CGAL Polygon Mesh
+/// Processing); -1 when the mesh is not a manifold polygon mesh.
+int count_self_intersections(const Mesh& m);
+/// The intersecting pairs of non-adjacent triangles as face indices of `m`;
+/// false (and no pairs) when the mesh is not a manifold polygon mesh.
+bool self_intersecting_faces(const Mesh& m, std::vector<std::pair<int, int>>& out);
+
+}  // namespace pm

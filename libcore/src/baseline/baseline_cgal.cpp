@@ -1,0 +1,207 @@
+// All CGAL Mesh_3 includes for the baselines live here: they compile slowly.
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Image_3.h>
+#include <CGAL/Labeled_mesh_domain_3.h>
+#include <CGAL/Mesh_complex_3_in_triangulation_3.h>
+#include <CGAL/Mesh_criteria_3.h>
+#include <CGAL/Mesh_domain_with_polyline_features_3.h>
+#include <CGAL/Mesh_triangulation_3.h>
+#include <CGAL/Random.h>
+#include <CGAL/make_mesh_3.h>
+
+#include <cmath>
+#include <map>
+#include <unordered_map>
+
+#include "pm/base/error.h"
+#include "pm/base/log.h"
+#include "pm/baseline/baseline.h"
+
+namespace pm {
+
+namespace {
+
+#ifdef CGAL_LINKED_WITH_TBB
+using Concurrency = CGAL::Parallel_tag;
+constexpr bool kParallel = true;
+#else
+using Concurrency = CGAL::Sequential_tag;
+constexpr bool kParallel = false;
+#endif
+
+using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+using ImageDomain = CGAL::Labeled_mesh_domain_3<K>;
+using FeatureDomain = CGAL::Mesh_domain_with_polyline_features_3<ImageDomain>;
+
+// Our volume as a CGAL image (node samples, voxel i at origin + i * spacing).
+template <class T>
+CGAL::Image_3 make_image(const Volume& v, WORD_KIND kind, SIGN sign, const std::vector<T>& data) {
+  const Geometry& g = v.geometry();
+  if (!g.axis_aligned() || g.directions[0][0] <= 0 || g.directions[1][1] <= 0 || g.directions[2][2] <= 0)
+    throw InputError("CGAL Mesh_3 baseline: the volume's space directions are not axis-aligned with positive "
+                     "spacings; expected a diagonal direction matrix (resample it first)");
+  _image* im = ::_createImage(v.dims().nx, v.dims().ny, v.dims().nz, 1, g.spacing(0), g.spacing(1), g.spacing(2),
+                              sizeof(T), kind, sign);
+  if (im == nullptr) throw Error("CGAL Mesh_3 baseline: cannot allocate the image");
+  std::copy(data.begin(), data.end(), static_cast<T*>(im->data));
+  im->tx = float(g.origin.x);
+  im->ty = float(g.origin.y);
+  im->tz = float(g.origin.z);
+  return CGAL::Image_3(im);
+}
+
+// Facets of the complex as a mesh: vertices renumbered in order of first use,
+// each facet oriented so its normal points from the lower to the higher
+// subdomain index. With `interfaces`, face ints label_a/label_b are set.
+template <class C3t3>
+Mesh extract_facets(const C3t3& c3t3, bool interfaces) {
+  using Tr = typename C3t3::Triangulation;
+  using Vh = typename Tr::Vertex_handle;
+  const Tr& tr = c3t3.triangulation();
+  std::map<Vh, int> index;
+  Mesh m;
+  std::vector<int> la, lb;
+  auto vid = [&](Vh v) {
+    auto it = index.find(v);
+    if (it != index.end()) return it->second;
+    const auto& p = tr.point(v);
+    m.vertices.push_back({CGAL::to_double(p.x()), CGAL::to_double(p.y()), CGAL::to_double(p.z())});
+    index.emplace(v, int(m.vertices.size()) - 1);
+    return int(m.vertices.size()) - 1;
+  };
+  for (auto fit = c3t3.facets_in_complex_begin(); fit != c3t3.facets_in_complex_end(); ++fit) {
+    auto c = fit->first;
+    int i = fit->second;
+    auto mirror = c->neighbor(i);
+    const int mi = mirror->index(c);
+    int sc = c3t3.is_in_complex(c) ? int(c3t3.subdomain_index(c)) : 0;
+    int sm = c3t3.is_in_complex(mirror) ? int(c3t3.subdomain_index(mirror)) : 0;
+    if (sc == sm) continue;
+    // Orient towards the higher index: view the facet from the lower side.
+    // Use a finite cell's opposite vertex to decide the winding.
+    const bool c_low = sc < sm;
+    auto cell = tr.is_infinite(c) ? mirror : c;
+    const int ci = tr.is_infinite(c) ? mi : i;
+    const bool cell_low = (cell == c) ? c_low : !c_low;
+    std::array<int, 3> f;
+    for (int k = 0; k < 3; ++k) f[std::size_t(k)] = vid(cell->vertex(Tr::vertex_triple_index(ci, k)));
+    const Vec3 &a = m.vertices[std::size_t(f[0])], &b = m.vertices[std::size_t(f[1])],
+               &cc = m.vertices[std::size_t(f[2])];
+    const auto& q = tr.point(cell->vertex(ci));
+    const Vec3 opp{CGAL::to_double(q.x()), CGAL::to_double(q.y()), CGAL::to_double(q.z())};
+    const bool points_into_cell = dot(cross(b - a, cc - a), opp - a) > 0;
+    // The normal must point out of the low side: into the cell iff the cell is the high side.
+    if (points_into_cell == cell_low) std::swap(f[1], f[2]);
+    m.faces.push_back(f);
+    la.push_back(std::min(sc, sm));
+    lb.push_back(std::max(sc, sm));
+  }
+  if (interfaces) {
+    m.face_ints["label_a"] = std::move(la);
+    m.face_ints["label_b"] = std::move(lb);
+  }
+  return m;
+}
+
+void check_params(const CgalMeshParams& p) {
+  if (!(p.facet_size > 0) || !std::isfinite(p.facet_size))
+    throw UsageError("CGAL Mesh_3 baseline: facet size must be > 0 world units, got " + std::to_string(p.facet_size));
+  if (p.facet_distance < 0)
+    throw UsageError("CGAL Mesh_3 baseline: facet distance must be >= 0, got " + std::to_string(p.facet_distance));
+  if (!(p.facet_angle > 0 && p.facet_angle <= 30))
+    throw UsageError("CGAL Mesh_3 baseline: facet angle must be in (0, 30] degrees, got " +
+                     std::to_string(p.facet_angle));
+}
+
+// Material side as Mesh_3 subdomain 1, outside 0.
+struct SideOf {
+  double iso;
+  bool below;
+  int operator()(double v) const { return (below ? v < iso : v > iso) ? 1 : 0; }
+};
+
+}  // namespace
+
+CgalMeshResult cgal_isosurface(const Volume& v, double iso, bool material_below, const CgalMeshParams& p) {
+  check_params(p);
+  namespace params = CGAL::parameters;
+  Stopwatch clock;
+  const std::vector<float> data = v.to_float();
+  CGAL::Image_3 image = make_image<float>(v, WK_FLOAT, SGN_SIGNED, data);
+  const ValueRange r = value_range(v);
+  if (!(iso > r.lo && iso < r.hi))
+    throw InputError("CGAL Mesh_3 baseline: isovalue " + std::to_string(iso) + " is outside the value range [" +
+                     std::to_string(r.lo) + ", " + std::to_string(r.hi) + "]; expected a value strictly inside");
+  // Outside the image counts as outside the material.
+  const double outside = material_below ? r.hi + 1 : r.lo - 1;
+  CGAL::get_default_random() = CGAL::Random(unsigned(p.seed));
+  ImageDomain domain = ImageDomain::create_gray_image_mesh_domain(
+      image, params::iso_value = iso, params::image_values_to_subdomain_indices = SideOf{iso, material_below},
+      params::value_outside = outside, params::relative_error_bound = 1e-6);
+  using Tr = CGAL::Mesh_triangulation_3<ImageDomain, CGAL::Default, Concurrency>::type;
+  using C3t3 = CGAL::Mesh_complex_3_in_triangulation_3<Tr>;
+  using Criteria = CGAL::Mesh_criteria_3<Tr>;
+  const double dist = p.facet_distance > 0 ? p.facet_distance : p.facet_size / 4;
+  Criteria criteria(params::facet_angle = p.facet_angle, params::facet_size = p.facet_size,
+                    params::facet_distance = dist);
+  C3t3 c3t3 = CGAL::make_mesh_3<C3t3>(domain, criteria, params::no_perturb(), params::no_exude(),
+                                      params::manifold());
+  CgalMeshResult res;
+  res.surface = extract_facets(c3t3, false);
+  // extract_facets orients from subdomain 0 (outside) into 1 (the material): flip to point outward.
+  for (auto& f : res.surface.faces) std::swap(f[1], f[2]);
+  if (res.surface.faces.empty())
+    throw InputError("CGAL Mesh_3 baseline: no surface found at F = " + std::to_string(iso) +
+                     "; expected the isovalue to cross the volume");
+  res.c3t3_vertices = c3t3.triangulation().number_of_vertices();
+  res.seconds = clock.seconds();
+  res.parallel = kParallel;
+  return res;
+}
+
+CgalMeshResult cgal_labels(const Volume& labels, const CgalMeshParams& p) {
+  check_params(p);
+  namespace params = CGAL::parameters;
+  if (!is_integer(labels.type()))
+    throw InputError(std::string("CGAL Mesh_3 labels baseline: voxel type ") + voxel_type_name(labels.type()) +
+                     "; expected an integer label map");
+  const ValueRange r = value_range(labels);
+  if (r.lo == r.hi) throw InputError("CGAL Mesh_3 labels baseline: a single label; expected at least two");
+  if (r.lo < 0 || r.hi > 2147483647.0)
+    throw InputError("CGAL Mesh_3 labels baseline: labels in [" + std::to_string(r.lo) + ", " +
+                     std::to_string(r.hi) + "]; expected non-negative 32-bit labels");
+  Stopwatch clock;
+  const std::vector<std::vector<Vec3>> lines = triple_lines(labels);
+  std::vector<std::vector<K::Point_3>> polylines;
+  for (const auto& l : lines) {
+    if (l.size() < 2) continue;
+    std::vector<K::Point_3> pl;
+    for (const Vec3& x : l) pl.emplace_back(x.x, x.y, x.z);
+    polylines.push_back(std::move(pl));
+  }
+  debug(std::to_string(polylines.size()) + " triple-line polylines protected");
+  std::vector<std::int32_t> data(labels.count());
+  for (std::size_t i = 0; i < data.size(); ++i) data[i] = std::int32_t(labels.get(i));
+  CGAL::Image_3 image = make_image<std::int32_t>(labels, WK_FIXED, SGN_SIGNED, data);
+  CGAL::get_default_random() = CGAL::Random(unsigned(p.seed));
+  FeatureDomain domain = FeatureDomain::create_labeled_image_mesh_domain(image, params::relative_error_bound = 1e-6);
+  domain.add_features(polylines.begin(), polylines.end());
+  using Tr = CGAL::Mesh_triangulation_3<FeatureDomain, CGAL::Default, Concurrency>::type;
+  using C3t3 = CGAL::Mesh_complex_3_in_triangulation_3<Tr, FeatureDomain::Corner_index, FeatureDomain::Curve_index>;
+  using Criteria = CGAL::Mesh_criteria_3<Tr>;
+  const double dist = p.facet_distance > 0 ? p.facet_distance : p.facet_size / 4;
+  const double edge = p.edge_size > 0 ? p.edge_size : p.facet_size;
+  Criteria criteria(params::edge_size = edge, params::facet_angle = p.facet_angle, params::facet_size = p.facet_size,
+                    params::facet_distance = dist);
+  C3t3 c3t3 = CGAL::make_mesh_3<C3t3>(domain, criteria, params::no_perturb(), params::no_exude());
+  CgalMeshResult res;
+  res.surface = extract_facets(c3t3, true);
+  if (res.surface.faces.empty())
+    throw InputError("CGAL Mesh_3 labels baseline: no interface facets; expected at least two labelled regions");
+  res.c3t3_vertices = c3t3.triangulation().number_of_vertices();
+  res.seconds = clock.seconds();
+  res.parallel = kParallel;
+  return res;
+}
+
+}  // namespace pm

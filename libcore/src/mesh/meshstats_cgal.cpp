@@ -1,0 +1,40 @@
+// All CGAL includes for meshstats live here: they compile slowly.
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
+#include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
+#include <CGAL/Polygon_mesh_processing/self_intersections.h>
+#include <CGAL/Surface_mesh.h>
+
+#include <iterator>
+
+#include "pm/mesh/meshstats.h"
+
+namespace pm {
+
+bool self_intersecting_faces(const Mesh& m, std::vector<std::pair<int, int>>& out) {
+  using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+  using SM = CGAL::Surface_mesh<K::Point_3>;
+  namespace PMP = CGAL::Polygon_mesh_processing;
+  out.clear();
+  std::vector<K::Point_3> pts;
+  pts.reserve(m.vertices.size());
+  for (const Vec3& v : m.vertices) pts.emplace_back(v.x, v.y, v.z);
+  std::vector<std::vector<std::size_t>> polys;
+  polys.reserve(m.faces.size());
+  for (const auto& f : m.faces) polys.push_back({std::size_t(f[0]), std::size_t(f[1]), std::size_t(f[2])});
+  if (!PMP::is_polygon_soup_a_polygon_mesh(polys)) return false;
+  SM sm;
+  PMP::polygon_soup_to_polygon_mesh(pts, polys, sm);  // faces keep the soup's order
+  std::vector<std::pair<SM::Face_index, SM::Face_index>> pairs;
+  PMP::self_intersections<CGAL::Parallel_if_available_tag>(sm, std::back_inserter(pairs));
+  for (const auto& p : pairs) out.emplace_back(int(std::size_t(p.first)), int(std::size_t(p.second)));
+  return true;
+}
+
+int count_self_intersections(const Mesh& m) {
+  std::vector<std::pair<int, int>> pairs;
+  if (!self_intersecting_faces(m, pairs)) return -1;
+  return int(pairs.size());
+}
+
+}  // namespace pm

@@ -1,0 +1,498 @@
+#include "pm/mesh/surface_improve.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <functional>
+#include <map>
+#include <cstdint>
+#include <string>
+#include <unordered_map>
+#include <unordered_set>
+#include <vector>
+
+#include "pm/base/error.h"
+#include "pm/base/parallel.h"
+#include "pm/field/junctions.h"
+#include "pm/mesh/meshstats.h"
+
+namespace pm {
+
+double triangle_radius_ratio(const Vec3& a, const Vec3& b, const Vec3& c) {
+  const double la = norm(b - c), lb = norm(c - a), lc = norm(a - b);
+  const double area2 = norm(cross(b - a, c - a));  // twice the area
+  const double prod = la * lb * lc, perim = la + lb + lc;
+  if (!(prod > 0) || !(perim > 0)) return 0;
+  // r_in = 2A / perimeter, r_circ = abc / 4A: 2 r_in / r_circ = 16 A² / (perimeter · abc).
+  return 4.0 * area2 * area2 / (perim * prod);
+}
+
+namespace {
+
+using Tri = std::array<int, 3>;
+
+std::uint64_t undirected(int a, int b) {
+  const std::uint32_t lo = std::uint32_t(std::min(a, b)), hi = std::uint32_t(std::max(a, b));
+  return (std::uint64_t(hi) << 32) | lo;
+}
+
+Vec3 face_normal(const Vec3& a, const Vec3& b, const Vec3& c) { return cross(b - a, c - a); }
+
+// What the faces sample: face f lies on the zero set of sheet group[f],
+// eval(x, group, grad) returning its value and gradient (F - iso for one
+// surface; f_a - f_b between materials a and b).
+struct Sheets {
+  std::vector<int> group;  // per face
+  std::function<double(const Vec3&, int, Vec3&)> eval;
+  // Interfaces only: the two materials of each face, and the projection of a
+  // point onto the triple curve of three materials (false when it fails).
+  std::vector<std::array<int, 2>> face_labels;
+  std::function<bool(Vec3&, const std::array<int, 3>&)> project_curve;
+};
+
+class Improver {
+ public:
+  Improver(Mesh& m, const Sheets& sh, bool single, const SurfaceImproveParams& p, const std::vector<char>& frozen)
+      : m_(m), sh_(sh), single_(single), p_(p), cos_fold_(std::cos(p.max_fold_deg * 3.14159265358979323846 / 180)),
+        frozen_(frozen) {}
+
+  SurfaceImproveStats run() {
+    build_opposites();  // validates the mesh
+    measure(st_.rr_min_before, st_.rr_mean_before, st_.valence6_before);
+    double edge_sum = 0;
+    for (const Tri& t : m_.faces)
+      for (int k = 0; k < 3; ++k) edge_sum += norm(m_.vertices[t[k]] - m_.vertices[t[(k + 1) % 3]]);
+    mean_edge_ = m_.faces.empty() ? 1.0 : edge_sum / (3.0 * double(m_.faces.size()));
+    tol_ = p_.tolerance * mean_edge_;
+    for (int r = 0; r < p_.rounds; ++r) {
+      for (int pass = 0; pass < 8; ++pass) {
+        if (flip_pass() == 0) break;
+        build_opposites();
+      }
+      for (int s = 0; s < p_.smoothing_steps; ++s) smooth_step();
+    }
+    if (single_ && m_.has_normals()) update_normals();
+    measure(st_.rr_min_after, st_.rr_mean_after, st_.valence6_after);
+    return st_;
+  }
+
+ private:
+  // Half-edge h = 3f + k runs from faces[f][k] to faces[f][k+1].
+  void build_opposites() {
+    const std::size_t nf = m_.faces.size(), nv = m_.vertices.size();
+    std::unordered_map<std::uint64_t, std::vector<int>> by_edge;  // undirected edge -> half-edges
+    by_edge.reserve(2 * nf);
+    for (std::size_t f = 0; f < nf; ++f)
+      for (int k = 0; k < 3; ++k)
+        by_edge[undirected(m_.faces[f][k], m_.faces[f][(k + 1) % 3])].push_back(int(3 * f + k));
+    opp_.assign(3 * nf, -1);
+    edges_.clear();
+    edges_.reserve(by_edge.size());
+    valence_.assign(nv, 0);
+    fixed_.assign(nv, 0);
+    curve_nb_.assign(nv, {-1, -1});
+    std::vector<int> junction_edges(nv, 0);
+    std::vector<int> vgroup(nv, -1);
+    for (std::size_t f = 0; f < nf; ++f)
+      for (int v : m_.faces[f]) {
+        if (vgroup[v] == -1) vgroup[v] = sh_.group[f];
+        else if (vgroup[v] != sh_.group[f]) fixed_[v] = 1;  // on a junction between sheets
+      }
+    for (const auto& [key, hs] : by_edge) {
+      edges_.insert(key);
+      const int a = int(key & 0xffffffffu), b = int(key >> 32);
+      ++valence_[a];
+      ++valence_[b];
+      const auto from = [&](int h) { return m_.faces[std::size_t(h / 3)][h % 3]; };
+      if (hs.size() == 2 && from(hs[0]) != from(hs[1]) && sh_.group[hs[0] / 3] == sh_.group[hs[1] / 3]) {
+        opp_[hs[0]] = hs[1];
+        opp_[hs[1]] = hs[0];
+      } else {
+        fixed_[a] = fixed_[b] = 1;  // boundary, junction curve or inconsistent orientation
+        if (hs.size() >= 3)
+          for (const auto& [u, w] : {std::make_pair(a, b), std::make_pair(b, a)}) {
+            if (junction_edges[u] < 2) curve_nb_[u][junction_edges[u]] = w;
+            ++junction_edges[u];
+          }
+        if (single_ && hs.size() == 1)
+          throw InputError("improve_surface: edge (" + std::to_string(a) + ", " + std::to_string(b) +
+                           ") borders one triangle; expected a closed surface");
+        if (single_ && (hs.size() != 2 || from(hs[0]) == from(hs[1])))
+          throw InputError("improve_surface: edge (" + std::to_string(a) + ", " + std::to_string(b) + ") has " +
+                           std::to_string(hs.size()) + " triangles" +
+                           (hs.size() == 2 ? " oriented the same way" : "") +
+                           "; expected a closed, consistently oriented manifold");
+      }
+    }
+    curve_count_ = std::move(junction_edges);
+  }
+
+  // A vertex inside a triple curve: exactly two junction edges, and its
+  // faces show exactly three materials (returned sorted).
+  bool curve_vertex(std::size_t v, const std::uint32_t* faces, std::size_t count, std::array<int, 3>& mats) const {
+    if (!sh_.project_curve || curve_nb_[v][1] < 0 || curve_count(v) != 2) return false;
+    int n = 0;
+    for (std::size_t q = 0; q < count; ++q)
+      for (int l : sh_.face_labels[faces[q]]) {
+        bool seen = false;
+        for (int k = 0; k < n; ++k) seen |= mats[std::size_t(k)] == l;
+        if (seen) continue;
+        if (n == 3) return false;
+        mats[std::size_t(n++)] = l;
+      }
+    if (n != 3) return false;
+    std::sort(mats.begin(), mats.end());
+    return true;
+  }
+  int curve_count(std::size_t v) const { return curve_count_.empty() ? 0 : curve_count_[v]; }
+
+  // Distance-like deviation of a point from the surface: |F - iso| / |∇F|.
+  double deviation(const Vec3& x, int group) const {
+    Vec3 g;
+    const double v = sh_.eval(x, group, g);
+    const double gn = norm(g);
+    return gn > 0 ? std::fabs(v) / gn : 1e300;
+  }
+
+  std::size_t flip_pass() {
+    const std::size_t nf = m_.faces.size();
+    std::vector<char> touched(nf, 0);
+    std::size_t flips = 0;
+    auto& V = m_.vertices;
+    for (std::size_t h = 0; h < 3 * nf; ++h) {
+      if (opp_[h] < 0) continue;
+      const std::size_t o = std::size_t(opp_[h]);
+      if (o < h) continue;
+      const std::size_t f = h / 3, g = o / 3;
+      if (touched[f] || touched[g] || f == g) continue;
+      const int k = int(h % 3), mo = int(o % 3);
+      const int a = m_.faces[f][k], b = m_.faces[f][(k + 1) % 3], c = m_.faces[f][(k + 2) % 3];
+      const int d = m_.faces[g][(mo + 2) % 3];
+      if (c == d || valence_[a] <= 3 || valence_[b] <= 3 || edges_.count(undirected(c, d))) continue;
+      if (frozen_[a] || frozen_[b] || frozen_[c] || frozen_[d]) continue;
+      const Vec3 &A = V[a], &B = V[b], &C = V[c], &D = V[d];
+      const double rr_old = std::min(triangle_radius_ratio(A, B, C), triangle_radius_ratio(B, A, D));
+      const double rr_new = std::min(triangle_radius_ratio(A, D, C), triangle_radius_ratio(B, C, D));
+      // Valence 6 is the goal on a sheet; junction vertices do not count.
+      auto dev = [&](int v, int dv) {
+        if (fixed_[v]) return 0.0;
+        const double x = double(valence_[v] + dv - 6);
+        return x * x;
+      };
+      const double dev_old = dev(a, 0) + dev(b, 0) + dev(c, 0) + dev(d, 0);
+      const double dev_new = dev(a, -1) + dev(b, -1) + dev(c, 1) + dev(d, 1);
+      const bool quality_flip = rr_old < p_.poor && rr_new > p_.quality_gain * rr_old && dev_new <= dev_old + 2;
+      // Never below min(old, 0.5): the mesh's worst triangle never gets worse
+      // than that (the same rule as the smoothing's).
+      const bool valence_flip =
+          dev_new < dev_old && rr_new >= std::max(p_.keep_quality * rr_old, std::min(rr_old, 0.5));
+      if (!quality_flip && !valence_flip) continue;
+      // No fold: the new triangles face the way the old pair did and each other.
+      const Vec3 n_old = normalized(normalized(face_normal(A, B, C)) + normalized(face_normal(B, A, D)));
+      const Vec3 n1 = normalized(face_normal(A, D, C)), n2 = normalized(face_normal(B, C, D));
+      if (!(dot(n1, n_old) >= cos_fold_ && dot(n2, n_old) >= cos_fold_ && dot(n1, n2) >= cos_fold_)) continue;
+      // The new edge must follow the surface about as well as the old one.
+      const int grp = sh_.group[f];
+      const double dev_cd = deviation((C + D) * 0.5, grp), dev_ab = deviation((A + B) * 0.5, grp);
+      if (!(dev_cd <= std::max(1.5 * dev_ab, 0.02 * norm(C - D)))) continue;
+      m_.faces[f] = {a, d, c};
+      m_.faces[g] = {b, c, d};
+      touched[f] = touched[g] = 1;
+      edges_.erase(undirected(a, b));
+      edges_.insert(undirected(c, d));
+      --valence_[a];
+      --valence_[b];
+      ++valence_[c];
+      ++valence_[d];
+      ++flips;
+    }
+    st_.flips += flips;
+    return flips;
+  }
+
+  // Newton projection onto F = iso; false when it does not get within tol_.
+  bool project(Vec3& x, int group) const {
+    for (int s = 0; s <= p_.newton_steps; ++s) {
+      Vec3 g;
+      const double v = sh_.eval(x, group, g);
+      const double gg = norm2(g);
+      if (!std::isfinite(v) || !(gg > 0)) return false;
+      if (std::fabs(v) / std::sqrt(gg) <= tol_) return true;
+      if (s == p_.newton_steps) break;
+      x -= g * (v / gg);
+    }
+    return false;
+  }
+
+  void smooth_step() {
+    const std::size_t nv = m_.vertices.size(), nf = m_.faces.size();
+    // vertex -> faces (CSR)
+    std::vector<std::uint32_t> start(nv + 1, 0), list(3 * nf);
+    for (const Tri& t : m_.faces)
+      for (int v : t) ++start[std::size_t(v) + 1];
+    for (std::size_t v = 0; v < nv; ++v) start[v + 1] += start[v];
+    {
+      std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
+      for (std::size_t f = 0; f < nf; ++f)
+        for (int v : m_.faces[f]) list[fill[std::size_t(v)]++] = std::uint32_t(f);
+    }
+    auto& V = m_.vertices;
+    // Proposals in parallel (pure reads): tangential move towards the
+    // area-weighted centroid of the 1-ring's triangles, projected onto F = iso.
+    std::vector<Vec3> prop(nv);
+    std::vector<char> ok(nv, 0);
+    pm::parallel_for(tbb::blocked_range<std::size_t>(0, nv, 256), [&](const tbb::blocked_range<std::size_t>& r) {
+      for (std::size_t v = r.begin(); v != r.end(); ++v) {
+        if (start[v] == start[v + 1] || frozen_[v] >= 2) continue;
+        std::array<int, 3> mats;
+        if (fixed_[v]) {
+          // A triple-curve vertex slides along the curve towards the middle of
+          // its two curve neighbours and is projected back onto the curve.
+          if (!curve_vertex(v, &list[start[v]], start[v + 1] - start[v], mats)) continue;
+          const Vec3 &p = V[std::size_t(curve_nb_[v][0])], &q = V[std::size_t(curve_nb_[v][1])];
+          const Vec3 t = normalized(q - p);
+          if (!is_finite(t)) continue;
+          const Vec3 step = t * (dot(t, (p + q) * 0.5 - V[v]) * p_.smoothing);
+          const Vec3 along = V[v] + step;
+          Vec3 x = along;
+          if (!sh_.project_curve(x, mats) || norm(x - along) > 0.5 * norm(step) + 10 * tol_) continue;
+          prop[v] = x;
+          ok[v] = 1;
+          continue;
+        }
+        const int grp = sh_.group[list[start[v]]];
+        Vec3 sum;
+        double wsum = 0;
+        for (std::uint32_t q = start[v]; q < start[v + 1]; ++q) {
+          const Tri& t = m_.faces[list[q]];
+          const double area = norm(face_normal(V[t[0]], V[t[1]], V[t[2]]));
+          sum += (V[t[0]] + V[t[1]] + V[t[2]]) * (area / 3.0);
+          wsum += area;
+        }
+        if (!(wsum > 0)) continue;
+        Vec3 g;
+        sh_.eval(V[v], grp, g);
+        const Vec3 n = normalized(g);
+        Vec3 step = (sum / wsum - V[v]) * p_.smoothing;
+        step -= n * dot(n, step);
+        const Vec3 tangent = V[v] + step;
+        Vec3 x = tangent;
+        // The surface departs from the tangent plane by about |step|² κ / 2;
+        // a projection that travels farther went to another sheet (thin parts).
+        if (!is_finite(x) || !project(x, grp) || norm(x - tangent) > 0.5 * norm(step) + 10 * tol_) continue;
+        prop[v] = x;
+        ok[v] = 1;
+      }
+    });
+    // Apply in vertex order against the current positions (deterministic): a
+    // move may not fold a triangle or lower the 1-ring's worst radius ratio
+    // below min(its old value, 0.5).
+    for (std::size_t v = 0; v < nv; ++v) {
+      if (!ok[v]) {
+        if (start[v] != start[v + 1] && frozen_[v] < 2 && !fixed_[v]) ++st_.rejected_moves;  // curve vertices not counted
+        continue;
+      }
+      const Vec3 old = V[v];
+      double rr_old = 1, rr_new = 1;
+      bool fold = false;
+      for (std::uint32_t q = start[v]; q < start[v + 1] && !fold; ++q) {
+        const Tri& t = m_.faces[list[q]];
+        const Vec3 n0 = face_normal(V[t[0]], V[t[1]], V[t[2]]);
+        rr_old = std::min(rr_old, triangle_radius_ratio(V[t[0]], V[t[1]], V[t[2]]));
+        V[v] = prop[v];
+        const Vec3 n1 = face_normal(V[t[0]], V[t[1]], V[t[2]]);
+        rr_new = std::min(rr_new, triangle_radius_ratio(V[t[0]], V[t[1]], V[t[2]]));
+        V[v] = old;
+        const double l0 = norm(n0), l1 = norm(n1);
+        fold = !(l0 > 0 && l1 > 0 && dot(n0, n1) >= cos_fold_ * l0 * l1);
+      }
+      if (fold || rr_new < std::min(rr_old, 0.5)) {
+        ++st_.rejected_moves;
+        continue;
+      }
+      V[v] = prop[v];
+      ++st_.moves;
+    }
+  }
+
+  void update_normals() {
+    auto& V = m_.vertices;
+    auto& N = m_.normals;
+    pm::parallel_for(tbb::blocked_range<std::size_t>(0, V.size(), 512), [&](const tbb::blocked_range<std::size_t>& r) {
+      for (std::size_t v = r.begin(); v != r.end(); ++v) {
+        Vec3 g;
+        sh_.eval(V[v], 0, g);
+        const Vec3 n = normalized(g);
+        if (is_finite(n) && norm2(n) > 0) N[v] = dot(n, N[v]) < 0 ? n * -1.0 : n;
+      }
+    });
+  }
+
+  void measure(double& rr_min, double& rr_mean, double& v6) const {
+    rr_min = 1;
+    double sum = 0;
+    for (const Tri& t : m_.faces) {
+      const double rr = triangle_radius_ratio(m_.vertices[t[0]], m_.vertices[t[1]], m_.vertices[t[2]]);
+      rr_min = std::min(rr_min, rr);
+      sum += rr;
+    }
+    rr_mean = m_.faces.empty() ? 0 : sum / double(m_.faces.size());
+    std::size_t used = 0, six = 0;
+    for (std::size_t v = 0; v < valence_.size(); ++v)
+      if (valence_[v] > 0 && !fixed_[v]) {
+        ++used;
+        six += valence_[v] == 6;
+      }
+    v6 = used ? double(six) / double(used) : 0;
+  }
+
+  Mesh& m_;
+  const Sheets& sh_;
+  const bool single_;  // one closed surface (else: interfaces between materials)
+  SurfaceImproveParams p_;
+  double cos_fold_;
+  double mean_edge_ = 1, tol_ = 0;
+  std::vector<int> opp_;
+  std::unordered_set<std::uint64_t> edges_;
+  std::vector<int> valence_;
+  std::vector<char> fixed_;  // junction vertices (several sheets, or an edge with != 2 faces)
+  std::vector<std::array<int, 2>> curve_nb_;  // the other ends of a vertex's first two junction edges
+  std::vector<int> curve_count_;              // junction edges at each vertex
+  const std::vector<char>& frozen_;
+  SurfaceImproveStats st_;
+};
+
+
+// Intersecting face pairs of `m` (indices into m.faces). One surface: the
+// mesh itself. Interfaces: each material's closed surface (faces with
+// label_a = L as they are, label_b = L reversed) in turn; a material whose
+// surface is not a manifold polygon mesh is skipped.
+std::vector<std::pair<int, int>> crossings(const Mesh& m, const std::vector<int>* materials) {
+  std::vector<std::pair<int, int>> all, pairs;
+  if (!materials) {
+    if (!self_intersecting_faces(m, pairs))
+      throw InputError("improve_surface: the improved mesh is not a manifold polygon mesh (internal error)");
+    return pairs;
+  }
+  const auto& la = m.face_ints.at("label_a");
+  const auto& lb = m.face_ints.at("label_b");
+  for (int L : *materials) {
+    Mesh sub;
+    sub.vertices = m.vertices;
+    std::vector<int> back;
+    for (std::size_t f = 0; f < m.faces.size(); ++f) {
+      if (la[f] == L) sub.faces.push_back(m.faces[f]);
+      else if (lb[f] == L) sub.faces.push_back({m.faces[f][0], m.faces[f][2], m.faces[f][1]});
+      else continue;
+      back.push_back(int(f));
+    }
+    if (sub.faces.empty() || !self_intersecting_faces(sub, pairs)) continue;
+    for (const auto& [x, y] : pairs) all.emplace_back(back[std::size_t(x)], back[std::size_t(y)]);
+  }
+  std::sort(all.begin(), all.end());
+  all.erase(std::unique(all.begin(), all.end()), all.end());
+  return all;
+}
+
+// Flips and moves are local tests; where two sheets of the surface are
+// closer than an edge (thin parts), they can still make triangles cross.
+// Check with CGAL, switch off flips (then moves) around every new crossing
+// (and the 1-rings), and redo from the original mesh; a few rounds suffice.
+SurfaceImproveStats improve_guarded(Mesh& mesh, const Sheets& sh, bool single, const std::vector<int>* materials,
+                                    const SurfaceImproveParams& p) {
+  const Mesh original = mesh;
+  const std::size_t before = crossings(original, materials).size();
+  std::vector<char> frozen(mesh.vertices.size(), 0);
+  SurfaceImproveStats st;
+  for (int attempt = 0;; ++attempt) {
+    Improver im(mesh, sh, single, p, frozen);
+    st = im.run();
+    const auto pairs = crossings(mesh, materials);
+    st.self_intersections = pairs.size();
+    if (pairs.size() <= before || attempt == 4) break;
+    std::vector<char> seed(mesh.vertices.size(), 0);
+    for (const auto& fp : pairs)
+      for (int f : {fp.first, fp.second})
+        for (int v : mesh.faces[std::size_t(f)]) seed[std::size_t(v)] = 1;
+    std::vector<char> grow(mesh.vertices.size(), 0);
+    for (const Mesh* m : {static_cast<const Mesh*>(&mesh), &original})
+      for (const auto& t : m->faces)
+        if (seed[std::size_t(t[0])] || seed[std::size_t(t[1])] || seed[std::size_t(t[2])])
+          for (int v : t) grow[std::size_t(v)] = 1;
+    for (std::size_t v = 0; v < grow.size(); ++v)
+      if (grow[v] && frozen[v] < 2) ++frozen[v];
+    mesh = original;
+  }
+  st.self_intersections_before = before;
+  for (char c : frozen) st.frozen += c != 0;
+  return st;
+}
+
+void check_params(const SurfaceImproveParams& p) {
+  if (p.rounds < 0 || p.smoothing_steps < 0 || !(p.smoothing >= 0 && p.smoothing <= 1))
+    throw UsageError("improve_surface: rounds and smoothing steps must be >= 0 and smoothing in [0, 1]");
+}
+
+}  // namespace
+
+SurfaceImproveStats improve_surface(Mesh& mesh, const ScalarField& field, double iso, const SurfaceImproveParams& p) {
+  mesh.validate("improve_surface");
+  check_params(p);
+  Sheets sh;
+  sh.group.assign(mesh.faces.size(), 0);
+  sh.eval = [&](const Vec3& x, int, Vec3& g) { return field.value_gradient(x, g) - iso; };
+  return improve_guarded(mesh, sh, true, nullptr, p);
+}
+
+SurfaceImproveStats improve_interfaces(Mesh& mesh, const MaterialSet& ms, const SurfaceImproveParams& p) {
+  mesh.validate("improve_interfaces");
+  check_params(p);
+  const auto ia = mesh.face_ints.find("label_a"), ib = mesh.face_ints.find("label_b");
+  if (ia == mesh.face_ints.end() || ib == mesh.face_ints.end())
+    throw InputError("improve_interfaces: the mesh has no label_a/label_b face properties; expected an interface mesh");
+  // One sheet per material pair: f_a - f_b = d_b - d_a = 0 (d negative inside).
+  std::map<std::pair<int, int>, int> pair_index;
+  std::vector<std::pair<std::size_t, std::size_t>> pair_fields;
+  Sheets sh;
+  sh.group.resize(mesh.faces.size());
+  std::vector<int> materials;
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
+    const int a = ia->second[f], b = ib->second[f];
+    const std::size_t xa = ms.index_of(a), xb = ms.index_of(b);
+    if (xa >= ms.size() || xb >= ms.size())
+      throw InputError("improve_interfaces: face " + std::to_string(f) + " joins labels " + std::to_string(a) +
+                       " and " + std::to_string(b) + ", not both in the material set");
+    const auto it = pair_index.emplace(std::make_pair(a, b), int(pair_fields.size())).first;
+    if (it->second == int(pair_fields.size())) pair_fields.emplace_back(xa, xb);
+    sh.group[f] = it->second;
+    materials.push_back(a);
+    materials.push_back(b);
+  }
+  std::sort(materials.begin(), materials.end());
+  materials.erase(std::unique(materials.begin(), materials.end()), materials.end());
+  sh.face_labels.resize(mesh.faces.size());
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f) sh.face_labels[f] = {ia->second[f], ib->second[f]};
+  CellProjectParams cp;
+  cp.max_steps = p.newton_steps + 4;
+  sh.project_curve = [&](Vec3& x, const std::array<int, 3>& labels) {
+    const JunctionCell c = make_cell({int(ms.index_of(labels[0])), int(ms.index_of(labels[1])),
+                                      int(ms.index_of(labels[2]))});
+    const CellProjection r = project_to_cell(ms, c, x, cp);
+    if (!r.converged || !r.dominant) return false;
+    x = r.x;
+    return true;
+  };
+  sh.eval = [&](const Vec3& x, int g, Vec3& grad) {
+    const auto [xa, xb] = pair_fields[std::size_t(g)];
+    Vec3 ga, gb;
+    const double da = ms.fields[xa]->value_gradient(x, ga), db = ms.fields[xb]->value_gradient(x, gb);
+    grad = gb - ga;
+    return db - da;
+  };
+  return improve_guarded(mesh, sh, false, &materials, p);
+}
+
+}  // namespace pm

@@ -1,0 +1,407 @@
+#include "pm/mesh/tetlabel.h"
+
+#include <tetgen.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <limits>
+#include <numeric>
+#include <sstream>
+#include <unordered_map>
+
+#include "pm/base/atomic_file.h"
+#include "pm/base/error.h"
+
+namespace pm {
+namespace {
+
+double signed_volume6(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+  return dot(b - a, cross(c - a, d - a));
+}
+
+// Outward faces of a positively oriented tetrahedron, face i opposite corner i.
+constexpr int kFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+
+// At least 4 finite points spanning a volume (TetGen asserts, i.e. aborts,
+// on a flat bounding box): refuse degenerate input here.
+void require_volume_spanning(const std::vector<Vec3>& points) {
+  if (points.size() < 4)
+    throw InputError("delaunay: " + std::to_string(points.size()) + " points; expected at least 4");
+  for (std::size_t i = 0; i < points.size(); ++i)
+    if (!is_finite(points[i])) throw InputError("delaunay: point " + std::to_string(i) + " is not finite");
+  const Vec3& p0 = points[0];
+  std::size_t i1 = 0, i2 = 0, i3 = 0;
+  double best = 0;
+  for (std::size_t i = 0; i < points.size(); ++i)
+    if (norm2(points[i] - p0) > best) best = norm2(points[i] - p0), i1 = i;
+  const double scale = std::sqrt(best);
+  const Vec3 dir = normalized(points[i1] - p0);
+  best = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Vec3 q = points[i] - p0;
+    const double d = norm2(q - dir * dot(q, dir));
+    if (d > best) best = d, i2 = i;
+  }
+  const Vec3 nrm = normalized(cross(points[i1] - p0, points[i2] - p0));
+  best = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const double d = std::fabs(dot(points[i] - p0, nrm));
+    if (d > best) best = d, i3 = i;
+  }
+  (void)i3;
+  if (!(scale > 0) || !(best > 1e-12 * scale))
+    throw InputError("delaunay: all " + std::to_string(points.size()) +
+                     " points are coplanar (or coincide); expected points spanning a volume");
+}
+
+}  // namespace
+
+TetMesh delaunay(const std::vector<Vec3>& points) {
+  require_volume_spanning(points);
+  tetgenio in, out;
+  in.numberofpoints = int(points.size());
+  in.pointlist = new REAL[points.size() * 3];
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    in.pointlist[3 * i] = points[i].x;
+    in.pointlist[3 * i + 1] = points[i].y;
+    in.pointlist[3 * i + 2] = points[i].z;
+  }
+  char switches[] = "zQn";
+  try {
+    tetrahedralize(switches, &in, &out);
+  } catch (int code) {
+    static const char* what[] = {"", "out of memory", "internal error", "self-intersection in input",
+                                 "small feature in input", "close facets in input", "self-intersection",
+                                 "input points are too close"};
+    std::ostringstream m;
+    m << "delaunay: TetGen failed with code " << code;
+    if (code > 0 && code < 8) m << " (" << what[code] << ")";
+    m << " on " << points.size() << " points";
+    throw InputError(m.str());
+  }
+  if (out.numberoftetrahedra <= 0)
+    throw InputError("delaunay: TetGen made no tetrahedra from " + std::to_string(points.size()) +
+                     " points; expected points that are not all coplanar");
+  if (out.numberofpoints != int(points.size()))
+    throw InputError("delaunay: TetGen returned " + std::to_string(out.numberofpoints) + " of " +
+                     std::to_string(points.size()) + " points (duplicates?); expected distinct points");
+  TetMesh tm;
+  tm.points = points;
+  const std::size_t nt = std::size_t(out.numberoftetrahedra);
+  tm.tets.resize(nt);
+  tm.neighbours.resize(nt);
+  for (std::size_t t = 0; t < nt; ++t) {
+    std::array<int, 4> v{}, n{};
+    for (int i = 0; i < 4; ++i) {
+      v[i] = out.tetrahedronlist[4 * t + i];
+      n[i] = out.neighborlist[4 * t + i];
+    }
+    if (signed_volume6(points[v[0]], points[v[1]], points[v[2]], points[v[3]]) < 0) {
+      std::swap(v[0], v[1]);
+      std::swap(n[0], n[1]);
+    }
+    tm.tets[t] = v;
+    tm.neighbours[t] = n;
+  }
+  return tm;
+}
+
+TetMesh delaunay_enclosed(const std::vector<Vec3>& points) {
+  require_volume_spanning(points);
+  std::vector<Vec3> all = points;
+  Box bb;
+  for (const Vec3& x : points) bb.extend(x);
+  const double pad = norm(bb.size()) + 1.0;
+  for (int c = 0; c < 8; ++c)
+    all.push_back({c & 1 ? bb.hi.x + pad : bb.lo.x - pad, c & 2 ? bb.hi.y + pad : bb.lo.y - pad,
+                   c & 4 ? bb.hi.z + pad : bb.lo.z - pad});
+  TetMesh full = delaunay(all);
+  const int n = int(points.size());
+  std::vector<int> keep_index(full.tets.size(), -1);
+  TetMesh tm;
+  tm.points = points;
+  for (std::size_t t = 0; t < full.tets.size(); ++t) {
+    const auto& v = full.tets[t];
+    if (v[0] < n && v[1] < n && v[2] < n && v[3] < n) {
+      keep_index[t] = int(tm.tets.size());
+      tm.tets.push_back(v);
+    }
+  }
+  tm.neighbours.reserve(tm.tets.size());
+  for (std::size_t t = 0; t < full.tets.size(); ++t) {
+    if (keep_index[t] < 0) continue;
+    std::array<int, 4> nb = full.neighbours[t];
+    for (int& q : nb) q = q >= 0 ? keep_index[std::size_t(q)] : -1;
+    tm.neighbours.push_back(nb);
+  }
+  return tm;
+}
+
+TetLabelStats label_tets(TetMesh& tm, const LabelFunction& label, const TetLabelParams& p) {
+  TetLabelStats st;
+  const std::size_t nt = tm.tets.size();
+  st.tets = nt;
+  constexpr int kUnset = std::numeric_limits<int>::min();
+  tm.labels.assign(nt, kUnset);
+  std::vector<Vec3> centroid(nt);
+  for (std::size_t t = 0; t < nt; ++t) {
+    const Vec3& a = tm.points[tm.tets[t][0]];
+    const Vec3& b = tm.points[tm.tets[t][1]];
+    const Vec3& c = tm.points[tm.tets[t][2]];
+    const Vec3& d = tm.points[tm.tets[t][3]];
+    const Vec3 u = b - a, v = c - a, w = d - a;
+    const double vol6 = dot(u, cross(v, w));
+    const double lrms =
+        std::sqrt((norm2(u) + norm2(v) + norm2(w) + norm2(b - c) + norm2(b - d) + norm2(c - d)) / 6.0);
+    // Regular tetrahedron: V = l³/(6√2), so √2·(6V)/l³ = 1.
+    const double quality = std::sqrt(2.0) * vol6 / (lrms * lrms * lrms);
+    centroid[t] = a + (u + v + w) * 0.25;
+    if (quality >= p.flat_quality && vol6 > 0) {
+      const Vec3 cc = a + (norm2(u) * cross(v, w) + norm2(v) * cross(w, u) + norm2(w) * cross(u, v)) / (2.0 * vol6);
+      tm.labels[t] = label(cc);
+    } else {
+      ++st.flat;
+    }
+  }
+  // Flat tetrahedra come from (nearly) co-spherical points: in exact arithmetic
+  // they share the circumsphere of the cluster they belong to, so they take
+  // the label of their labelled face neighbours (majority; a tie, e.g. a lone
+  // flat tetrahedron lying on the surface, is decided at the centroid).
+  // Breadth-first from the labelled tetrahedra, in index order: deterministic.
+  std::vector<std::size_t> frontier, next;
+  for (std::size_t t = 0; t < nt; ++t)
+    if (tm.labels[t] == kUnset) frontier.push_back(t);
+  while (!frontier.empty()) {
+    next.clear();
+    std::vector<std::pair<std::size_t, int>> decided;
+    for (std::size_t t : frontier) {
+      int votes[4], nv = 0;
+      for (int n : tm.neighbours[t])
+        if (n >= 0 && tm.labels[n] != kUnset) votes[nv++] = tm.labels[n];
+      if (nv == 0) {
+        next.push_back(t);
+        continue;
+      }
+      int best = kUnset, best_count = 0;
+      bool tie = false;
+      for (int i = 0; i < nv; ++i) {
+        int c = 0;
+        for (int j = 0; j < nv; ++j) c += votes[j] == votes[i];
+        if (c > best_count) {
+          best = votes[i];
+          best_count = c;
+          tie = false;
+        } else if (c == best_count && votes[i] != best) {
+          tie = true;
+        }
+      }
+      decided.emplace_back(t, tie ? label(centroid[t]) : best);
+    }
+    if (decided.empty()) {  // islands of flat tetrahedra with no labelled neighbour
+      for (std::size_t t : next) tm.labels[t] = label(centroid[t]);
+      break;
+    }
+    for (const auto& [t, l] : decided) tm.labels[t] = l;
+    frontier.swap(next);
+  }
+  return st;
+}
+
+namespace {
+// Visit every face between two differently labelled tetrahedra once (hull
+// faces border `outside_label`). `orient(back, front)` returns +1 to keep the
+// face with its normal from the back label into the front label, -1 to keep
+// it flipped, 0 to skip it.
+Mesh collect_faces(const TetMesh& tm, int outside_label, const std::function<int(int, int)>& orient,
+                   bool with_labels) {
+  Mesh m;
+  std::vector<int> remap(tm.points.size(), -1);
+  auto vid = [&](int p) {
+    if (remap[p] < 0) {
+      remap[p] = int(m.vertices.size());
+      m.vertices.push_back(tm.points[p]);
+      m.vertex_scalars["index"].push_back(double(p));
+    }
+    return remap[p];
+  };
+  std::vector<int> la, lb;
+  for (std::size_t t = 0; t < tm.tets.size(); ++t) {
+    const int l = tm.labels[t];
+    for (int i = 0; i < 4; ++i) {
+      const int n = tm.neighbours[t][i];
+      if (n >= 0 && std::size_t(n) < t) continue;  // seen from the other side already
+      const int ln = n < 0 ? outside_label : tm.labels[n];
+      if (ln == l) continue;
+      const int o = orient(l, ln);
+      if (o == 0) continue;
+      const auto& v = tm.tets[t];
+      // Outward face of tet t: normal points from l (back) into ln (front).
+      if (o > 0) {
+        m.faces.push_back({vid(v[kFace[i][0]]), vid(v[kFace[i][1]]), vid(v[kFace[i][2]])});
+        la.push_back(l);
+        lb.push_back(ln);
+      } else {
+        m.faces.push_back({vid(v[kFace[i][0]]), vid(v[kFace[i][2]]), vid(v[kFace[i][1]])});
+        la.push_back(ln);
+        lb.push_back(l);
+      }
+    }
+  }
+  if (with_labels) {
+    m.face_ints["label_a"] = std::move(la);
+    m.face_ints["label_b"] = std::move(lb);
+  }
+  return m;
+}
+}  // namespace
+
+Mesh interface_mesh(const TetMesh& tm, int outside_label) {
+  if (tm.labels.size() != tm.tets.size()) throw Error("interface_mesh: tetrahedra are not labelled");
+  return collect_faces(tm, outside_label, [](int l, int ln) { return l < ln ? 1 : -1; }, true);
+}
+
+Mesh material_surface(const TetMesh& tm, int label, int outside_label) {
+  if (tm.labels.size() != tm.tets.size()) throw Error("material_surface: tetrahedra are not labelled");
+  return collect_faces(
+      tm, outside_label, [label](int l, int ln) { return l == label ? 1 : (ln == label ? -1 : 0); }, false);
+}
+
+namespace {
+struct ManifoldChecker {
+  const TetMesh& tm;
+  int label, outside;
+  std::vector<std::vector<int>> vt;  // vertex -> incident tets
+
+  ManifoldChecker(const TetMesh& t, int l, int o) : tm(t), label(l), outside(o), vt(t.points.size()) {
+    for (std::size_t i = 0; i < tm.tets.size(); ++i)
+      for (int v : tm.tets[i]) vt[v].push_back(int(i));
+  }
+  bool member(int t) const { return t >= 0 && tm.labels[t] == label; }
+  // True when the material's faces at v form one closed fan (or none).
+  bool ok(int v) const {
+    std::vector<std::pair<int, int>> edges;  // the two other vertices of each face at v
+    for (int t : vt[v]) {
+      if (!member(t)) continue;
+      const auto& tv = tm.tets[t];
+      for (int i = 0; i < 4; ++i) {
+        if (tv[i] == v) continue;
+        if (member(tm.neighbours[t][i])) continue;
+        int a = -1, b = -1;
+        for (int k = 0; k < 3; ++k) {
+          const int w = tv[kFace[i][k]];
+          if (w == v) continue;
+          (a < 0 ? a : b) = w;
+        }
+        edges.emplace_back(a, b);
+      }
+    }
+    if (edges.empty()) return true;
+    std::unordered_map<int, std::vector<int>> adj;
+    for (const auto& [a, b] : edges) {
+      adj[a].push_back(b);
+      adj[b].push_back(a);
+    }
+    for (const auto& [w, n] : adj)
+      if (n.size() != 2) return false;
+    // One cycle: walk it.
+    std::size_t steps = 0;
+    int prev = -1, cur = edges[0].first;
+    const int start = cur;
+    do {
+      const auto& n = adj[cur];
+      const int next = n[0] != prev ? n[0] : n[1];
+      prev = cur;
+      cur = next;
+      ++steps;
+    } while (cur != start && steps <= edges.size());
+    return steps == edges.size();
+  }
+  bool ok_around(int t) const {
+    for (int v : tm.tets[t])
+      if (!ok(v)) return false;
+    return true;
+  }
+};
+
+int other_label(const TetMesh& tm, int t, int label, int outside) {
+  int votes[4], n = 0;
+  for (int nb : tm.neighbours[t]) {
+    const int l = nb < 0 ? outside : tm.labels[nb];
+    if (l != label) votes[n++] = l;
+  }
+  if (n == 0) return outside;
+  int best = votes[0], best_count = 0;
+  for (int i = 0; i < n; ++i) {
+    int c = 0;
+    for (int j = 0; j < n; ++j) c += votes[j] == votes[i];
+    if (c > best_count || (c == best_count && votes[i] < best)) best = votes[i], best_count = c;
+  }
+  return best;
+}
+}  // namespace
+
+std::size_t make_manifold(TetMesh& tm, int label, int outside_label) {
+  if (tm.labels.size() != tm.tets.size()) throw Error("make_manifold: tetrahedra are not labelled");
+  ManifoldChecker mc(tm, label, outside_label);
+  std::size_t flips = 0;
+  for (int round = 0; round < 4; ++round) {
+    std::vector<int> bad;
+    for (std::size_t v = 0; v < tm.points.size(); ++v)
+      if (!mc.vt[v].empty() && !mc.ok(int(v))) bad.push_back(int(v));
+    if (bad.empty()) break;
+    for (int v : bad) {
+      if (mc.ok(v)) continue;
+      bool fixed = false;
+      for (int t : mc.vt[v]) {
+        const int old = tm.labels[t];
+        tm.labels[t] = old == label ? other_label(tm, t, label, outside_label) : label;
+        if (mc.ok_around(t)) {
+          fixed = true;
+          ++flips;
+          break;
+        }
+        tm.labels[t] = old;
+      }
+      if (fixed) continue;
+      for (int t : mc.vt[v])
+        if (tm.labels[t] != label) {
+          tm.labels[t] = label;
+          ++flips;
+        }
+    }
+  }
+  return flips;
+}
+
+void write_medit(const TetMesh& tm, int outside_label, const std::string& path) {
+  write_atomically(path, [&](const std::string& tmp) {
+    std::FILE* f = std::fopen(tmp.c_str(), "w");
+    if (!f) throw IoError(quote(path) + ": cannot open for writing");
+    std::vector<int> remap(tm.points.size(), -1);
+    std::vector<int> used;
+    for (std::size_t t = 0; t < tm.tets.size(); ++t)
+      if (tm.labels[t] != outside_label)
+        for (int v : tm.tets[t])
+          if (remap[v] < 0) {
+            remap[v] = int(used.size()) + 1;
+            used.push_back(v);
+          }
+    std::fprintf(f, "MeshVersionFormatted 2\nDimension 3\nVertices\n%zu\n", used.size());
+    for (int v : used) std::fprintf(f, "%.17g %.17g %.17g 0\n", tm.points[v].x, tm.points[v].y, tm.points[v].z);
+    std::size_t n = 0;
+    for (std::size_t t = 0; t < tm.tets.size(); ++t) n += tm.labels[t] != outside_label;
+    std::fprintf(f, "Tetrahedra\n%zu\n", n);
+    for (std::size_t t = 0; t < tm.tets.size(); ++t)
+      if (tm.labels[t] != outside_label) {
+        const auto& v = tm.tets[t];
+        std::fprintf(f, "%d %d %d %d %d\n", remap[v[0]], remap[v[1]], remap[v[2]], remap[v[3]], tm.labels[t]);
+      }
+    std::fprintf(f, "End\n");
+    const bool bad = std::ferror(f) != 0;
+    if (std::fclose(f) != 0 || bad) throw IoError(quote(path) + ": write failed");
+  });
+}
+
+}  // namespace pm

@@ -1,0 +1,155 @@
+#include "pm/mesh/tetlabel_materials.h"
+
+#include <algorithm>
+#include <set>
+
+#include "pm/base/error.h"
+
+namespace pm {
+
+int auto_outside_label(const MaterialSet& ms) {
+  if (ms.size() == 0) throw Error("auto_outside_label: empty material set");
+  const Box d = ms.domain();
+  std::map<int, int> votes;
+  for (int c = 0; c < 8; ++c) {
+    const Vec3 p{(c & 1) ? d.hi.x : d.lo.x, (c & 2) ? d.hi.y : d.lo.y, (c & 4) ? d.hi.z : d.lo.z};
+    ++votes[ms.label_at(p)];
+  }
+  int best = votes.begin()->first, n = 0;
+  for (const auto& [l, v] : votes)
+    if (v > n) {  // map order: ties keep the smallest label
+      best = l;
+      n = v;
+    }
+  return best;
+}
+
+namespace {
+
+// Relabel the tetrahedra of `label` around each non-manifold edge and vertex
+// of its surface to the most common other label among the tetrahedra there
+// (ties: the smallest), which removes the pinch from its surface. Returns the
+// number of tetrahedra changed.
+std::size_t fill_pinches(TetMesh& tm, int label, int outside) {
+  const Mesh m = material_surface(tm, label, outside);
+  if (m.faces.empty()) return 0;
+  const auto& idx = m.vertex_scalars.at("index");
+  auto pid = [&](int v) { return int(idx[std::size_t(v)]); };
+  // Pinched edges: more than two faces.
+  std::map<std::pair<int, int>, int> edge_faces;
+  std::vector<std::vector<std::pair<int, int>>> link(m.vertices.size());  // vertex -> opposite edges
+  for (const auto& f : m.faces)
+    for (int e = 0; e < 3; ++e) {
+      const int a = f[e], b = f[(e + 1) % 3], c = f[(e + 2) % 3];
+      ++edge_faces[{std::min(a, b), std::max(a, b)}];
+      link[a].emplace_back(b, c);
+    }
+  std::vector<std::vector<int>> sites;  // point ids whose common tetrahedra get relabelled
+  for (const auto& [e, n] : edge_faces)
+    if (n > 2) sites.push_back({pid(e.first), pid(e.second)});
+  // Pinched vertices: the link edges do not form one connected cycle.
+  for (std::size_t v = 0; v < link.size(); ++v) {
+    if (link[v].empty()) continue;
+    std::map<int, std::vector<int>> adj;
+    for (const auto& [a, b] : link[v]) {
+      adj[a].push_back(b);
+      adj[b].push_back(a);
+    }
+    std::set<int> seen{adj.begin()->first};
+    std::vector<int> stack{adj.begin()->first};
+    while (!stack.empty()) {
+      const int x = stack.back();
+      stack.pop_back();
+      for (int y : adj[x])
+        if (seen.insert(y).second) stack.push_back(y);
+    }
+    if (seen.size() != adj.size()) sites.push_back({pid(int(v))});
+  }
+  if (sites.empty()) return 0;
+  std::vector<std::vector<int>> vt(tm.points.size());
+  for (std::size_t t = 0; t < tm.tets.size(); ++t)
+    for (int v : tm.tets[t]) vt[std::size_t(v)].push_back(int(t));
+  std::size_t changed = 0;
+  for (const auto& site : sites) {
+    std::vector<int> around;
+    for (int t : vt[std::size_t(site[0])]) {
+      bool all = true;
+      for (std::size_t i = 1; i < site.size(); ++i) {
+        const auto& tv = tm.tets[std::size_t(t)];
+        all = all && std::find(tv.begin(), tv.end(), site[i]) != tv.end();
+      }
+      if (all) around.push_back(t);
+    }
+    std::map<int, int> votes;
+    for (int t : around)
+      if (tm.labels[std::size_t(t)] != label) ++votes[tm.labels[std::size_t(t)]];
+    if (votes.empty()) continue;
+    int best = votes.begin()->first, bn = 0;
+    for (const auto& [l, n] : votes)
+      if (n > bn) {
+        best = l;
+        bn = n;
+      }
+    for (int t : around)
+      if (tm.labels[std::size_t(t)] == label) {
+        tm.labels[std::size_t(t)] = best;
+        ++changed;
+      }
+  }
+  return changed;
+}
+
+}  // namespace
+
+MaterialMeshes mesh_materials(TetMesh& tm, const MaterialSet& ms, const MaterialMeshParams& p) {
+  if (ms.size() == 0) throw Error("mesh_materials: empty material set");
+  MaterialMeshes out;
+  const Box dom = ms.domain();
+  const int outside = p.outside_label;
+  out.label_stats = label_tets(
+      tm, [&](const Vec3& x) { return dom.contains(x) ? ms.label_at(x) : outside; }, p.label);
+
+  auto present = [&] {
+    std::set<int> s(tm.labels.begin(), tm.labels.end());
+    s.erase(outside);
+    return s;
+  };
+  if (p.repair) {
+    for (int round = 0; round < p.repair_rounds; ++round) {
+      std::size_t changed = 0;
+      for (int l : present()) changed += make_manifold(tm, l, outside);
+      // The outside material's surface (the union of the others') can still
+      // pinch where two other materials meet it only along an edge or at a
+      // vertex; and any material make_manifold could not fix: fill the pinch.
+      std::set<int> all = present();
+      all.insert(outside);
+      for (int l : all) changed += fill_pinches(tm, l, outside);
+      out.relabelled += changed;
+      if (changed == 0) break;
+    }
+  }
+  for (int l : tm.labels) ++out.tets_per_label[l];
+  out.interfaces = interface_mesh(tm, outside);
+  {
+    const auto& a = out.interfaces.face_ints.at("label_a");
+    const auto& b = out.interfaces.face_ints.at("label_b");
+    std::set<std::pair<int, int>> s;
+    for (std::size_t f = 0; f < a.size(); ++f) s.emplace(a[f], b[f]);
+    out.pairs.assign(s.begin(), s.end());
+    std::vector<int> pair(a.size());
+    for (std::size_t f = 0; f < a.size(); ++f)
+      pair[f] = int(std::lower_bound(out.pairs.begin(), out.pairs.end(), std::make_pair(a[f], b[f])) -
+                    out.pairs.begin());
+    out.interfaces.face_ints["pair"] = std::move(pair);
+  }
+  for (int l : present()) {
+    Mesh m = material_surface(tm, l, outside);
+    if (!mesh_topology(m).closed_manifold()) out.nonmanifold_materials.push_back(l);
+    out.surfaces.emplace(l, std::move(m));
+  }
+  if (!mesh_topology(material_surface(tm, outside, outside)).closed_manifold())
+    out.nonmanifold_materials.push_back(outside);
+  return out;
+}
+
+}  // namespace pm

@@ -1,0 +1,485 @@
+#include "pm/render/render.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <unordered_map>
+
+#include "pm/base/error.h"
+
+namespace pm {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr float kFar = std::numeric_limits<float>::infinity();
+
+// Viridis-like perceptual colormap: control points sampled along the curve.
+Vec3 colormap(double t) {
+  static const Vec3 kStops[] = {{0.267, 0.005, 0.329}, {0.283, 0.141, 0.458}, {0.254, 0.265, 0.530},
+                                {0.207, 0.372, 0.553}, {0.164, 0.471, 0.558}, {0.128, 0.567, 0.551},
+                                {0.135, 0.659, 0.518}, {0.267, 0.749, 0.441}, {0.478, 0.821, 0.318},
+                                {0.741, 0.873, 0.150}, {0.993, 0.906, 0.144}};
+  constexpr int n = int(sizeof kStops / sizeof kStops[0]);
+  if (!std::isfinite(t)) return {0.5, 0.5, 0.5};
+  t = std::clamp(t, 0.0, 1.0) * (n - 1);
+  const int i = std::min(int(t), n - 2);
+  const double f = t - i;
+  return kStops[i] * (1 - f) + kStops[i + 1] * f;
+}
+
+// Categorical palette for integer labels (value modulo 12).
+Vec3 category_color(int v) {
+  static const Vec3 kPalette[] = {{0.122, 0.467, 0.706}, {1.000, 0.498, 0.055}, {0.173, 0.627, 0.173},
+                                  {0.839, 0.153, 0.157}, {0.580, 0.404, 0.741}, {0.549, 0.337, 0.294},
+                                  {0.890, 0.467, 0.761}, {0.650, 0.850, 0.950}, {0.737, 0.741, 0.133},
+                                  {0.090, 0.745, 0.812}, {0.950, 0.850, 0.250}, {0.600, 0.900, 0.500}};
+  constexpr int n = int(sizeof kPalette / sizeof kPalette[0]);
+  return kPalette[((v % n) + n) % n];
+}
+
+const Vec3 kPlain{0.80, 0.78, 0.72};
+const Vec3 kEdge{0.12, 0.12, 0.15};
+
+struct Shader {
+  Vec3 light;  // unit, towards the light
+  explicit Shader(const Camera& c) : light(normalized(-c.forward + 0.6 * c.up - 0.4 * c.right)) {}
+  // Lambert + ambient; n faces the camera (or is zero: ambient + half).
+  Vec3 operator()(const Vec3& n, const Vec3& base) const {
+    const double ln = norm2(n) > 0 ? std::max(0.0, dot(n, light)) : 0.5;
+    return base * (0.28 + 0.72 * ln);
+  }
+};
+
+// Where the colour comes from.
+struct ColorSource {
+  const std::vector<double>* scalar = nullptr;  // per vertex
+  const std::vector<int>* label = nullptr;      // per face
+  double lo = 0, hi = 1;
+  double t(double v) const { return hi > lo ? (v - lo) / (hi - lo) : 0.5; }
+};
+
+std::string available_properties(const Mesh& m) {
+  std::string s;
+  for (const auto& kv : m.vertex_scalars) s += (s.empty() ? "" : ", ") + kv.first + " (vertex)";
+  for (const auto& kv : m.face_ints) s += (s.empty() ? "" : ", ") + kv.first + " (face)";
+  return s.empty() ? "none" : s;
+}
+
+ColorSource color_source(const Mesh& m, const std::string& name) {
+  ColorSource c;
+  if (name.empty()) return c;
+  if (auto it = m.vertex_scalars.find(name); it != m.vertex_scalars.end()) {
+    c.scalar = &it->second;
+    c.lo = std::numeric_limits<double>::infinity();
+    c.hi = -c.lo;
+    for (double v : it->second)
+      if (std::isfinite(v)) {
+        c.lo = std::min(c.lo, v);
+        c.hi = std::max(c.hi, v);
+      }
+    if (c.lo > c.hi) c.lo = c.hi = 0;
+    return c;
+  }
+  if (auto it = m.face_ints.find(name); it != m.face_ints.end()) {
+    c.label = &it->second;
+    return c;
+  }
+  throw InputError("render: no vertex or face property " + quote(name) + "; available: " + available_properties(m));
+}
+
+void check_params(const RenderParams& p) {
+  if (p.width < 1 || p.width > 8192 || p.height < 1 || p.height > 8192)
+    throw UsageError("render: image size " + std::to_string(p.width) + "x" + std::to_string(p.height) +
+                     " pixels; expected each side in [1, 8192]");
+  if (p.up != "x" && p.up != "y" && p.up != "z")
+    throw UsageError("render: up axis " + quote(p.up) + "; expected x, y or z");
+  if (p.mode != "auto" && p.mode != "disks" && p.mode != "splats" && p.mode != "mesh")
+    throw UsageError("render: mode " + quote(p.mode) + "; expected auto, disks, splats or mesh");
+  if (!(p.radius >= 0) || !std::isfinite(p.radius))
+    throw UsageError("render: radius " + std::to_string(p.radius) + "; expected >= 0 (0 = auto)");
+  if (!std::isfinite(p.azimuth_deg) || !std::isfinite(p.elevation_deg))
+    throw UsageError("render: camera angles must be finite");
+}
+
+// Frame buffers shared by all modes.
+struct Frame {
+  int w, h;
+  std::vector<float> depth;
+  std::vector<Vec3> color;
+  Frame(int w_, int h_) : w(w_), h(h_), depth(std::size_t(w_) * h_, kFar), color(std::size_t(w_) * h_) {}
+  std::size_t at(int x, int y) const { return std::size_t(y) * std::size_t(w) + std::size_t(x); }
+
+  Image to_image(const Vec3& background) const {
+    Image img(w, h);
+    for (std::size_t i = 0; i < depth.size(); ++i) {
+      const Vec3 c = depth[i] < kFar ? color[i] : background;
+      for (int k = 0; k < 3; ++k)
+        img.rgb[3 * i + k] = std::uint8_t(std::lround(255.0 * std::clamp(c[k], 0.0, 1.0)));
+    }
+    return img;
+  }
+};
+
+// ---------------------------------------------------------------------------
+// Triangles
+
+void render_mesh(const Mesh& m, const Camera& cam, const ColorSource& cs, bool edges, Frame& fb) {
+  const Shader shade(cam);
+  std::vector<Vec3> s(m.vertices.size());
+  for (std::size_t i = 0; i < s.size(); ++i) s[i] = cam.project(m.vertices[i]);
+  const bool smooth = m.has_normals();
+  for (std::size_t f = 0; f < m.faces.size(); ++f) {
+    const auto& t = m.faces[f];
+    const Vec3 &a = s[t[0]], &b = s[t[1]], &c = s[t[2]];
+    if (!is_finite(a) || !is_finite(b) || !is_finite(c)) continue;
+    // Signed doubled area in screen space; either winding is drawn.
+    const double area = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+    if (std::fabs(area) < 1e-12) continue;
+    const int x0 = std::max(0, int(std::floor(std::min({a.x, b.x, c.x}))));
+    const int x1 = std::min(fb.w - 1, int(std::ceil(std::max({a.x, b.x, c.x}))));
+    const int y0 = std::max(0, int(std::floor(std::min({a.y, b.y, c.y}))));
+    const int y1 = std::min(fb.h - 1, int(std::ceil(std::max({a.y, b.y, c.y}))));
+    if (x0 > x1 || y0 > y1) continue;
+
+    Vec3 fn = cross(m.vertices[t[1]] - m.vertices[t[0]], m.vertices[t[2]] - m.vertices[t[0]]);
+    fn = normalized(dot(fn, cam.forward) > 0 ? -fn : fn);
+    Vec3 flat_base = kPlain;
+    if (cs.label) flat_base = category_color((*cs.label)[f]);
+    // Edge lengths (pixels) to turn edge functions into distances.
+    const double la = std::hypot(c.x - b.x, c.y - b.y), lb = std::hypot(a.x - c.x, a.y - c.y),
+                 lc = std::hypot(b.x - a.x, b.y - a.y);
+    const double inv = 1.0 / area;
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x) {
+        const double px = x + 0.5, py = y + 0.5;
+        const double ea = (c.x - b.x) * (py - b.y) - (c.y - b.y) * (px - b.x);  // opposite a
+        const double eb = (a.x - c.x) * (py - c.y) - (a.y - c.y) * (px - c.x);  // opposite b
+        const double ec = (b.x - a.x) * (py - a.y) - (b.y - a.y) * (px - a.x);  // opposite c
+        const double wa = ea * inv, wb = eb * inv, wc = ec * inv;
+        if (wa < 0 || wb < 0 || wc < 0) continue;
+        const double z = wa * a.z + wb * b.z + wc * c.z;
+        const std::size_t i = fb.at(x, y);
+        if (!(z < fb.depth[i])) continue;
+        fb.depth[i] = float(z);
+        Vec3 n = fn;
+        if (smooth) {
+          n = wa * m.normals[t[0]] + wb * m.normals[t[1]] + wc * m.normals[t[2]];
+          n = normalized(dot(n, cam.forward) > 0 ? -n : n);
+          if (norm2(n) == 0) n = fn;
+        }
+        Vec3 base = flat_base;
+        if (cs.scalar)
+          base = colormap(cs.t(wa * (*cs.scalar)[t[0]] + wb * (*cs.scalar)[t[1]] + wc * (*cs.scalar)[t[2]]));
+        Vec3 col = shade(n, base);
+        if (edges) {
+          const double d = std::min({std::fabs(ea) / la, std::fabs(eb) / lb, std::fabs(ec) / lc});
+          const double k = std::clamp(1.1 - d, 0.0, 1.0) * 0.85;
+          col = col * (1 - k) + kEdge * k;
+        }
+        fb.color[i] = col;
+      }
+  }
+}
+
+// ---------------------------------------------------------------------------
+// Points: disks and splats
+
+// A point's disk of radius r (world units) in screen space. Calls f(pixel
+// index, squared distance from the centre in world units, depth) for every
+// pixel centre the disk covers.
+struct DiskRaster {
+  const Camera& cam;
+  template <class F>
+  void operator()(const Vec3& p, const Vec3& n, double r, int w, int h, F&& f) const {
+    const Vec3 c = cam.project(p);
+    if (!is_finite(c)) return;
+    const double nr = dot(n, cam.right), nu = dot(n, cam.up);
+    double nf = dot(n, cam.forward);
+    if (std::fabs(nf) < 1e-3) nf = nf < 0 ? -1e-3 : 1e-3;
+    const double ex = r * cam.scale * std::sqrt(std::max(0.0, 1 - nr * nr));
+    const double ey = r * cam.scale * std::sqrt(std::max(0.0, 1 - nu * nu));
+    const int x0 = std::max(0, int(std::floor(c.x - ex))), x1 = std::min(w - 1, int(std::floor(c.x + ex)));
+    const int y0 = std::max(0, int(std::floor(c.y - ey))), y1 = std::min(h - 1, int(std::floor(c.y + ey)));
+    const double r2 = r * r, inv_s = 1.0 / cam.scale;
+    for (int y = y0; y <= y1; ++y) {
+      const double dy = -(y + 0.5 - c.y) * inv_s;  // along cam.up
+      for (int x = x0; x <= x1; ++x) {
+        const double dx = (x + 0.5 - c.x) * inv_s;  // along cam.right
+        const double t = -(dx * nr + dy * nu) / nf;  // along cam.forward, in the disk's plane
+        const double d2 = dx * dx + dy * dy + t * t;
+        if (d2 <= r2) f(std::size_t(y) * std::size_t(w) + std::size_t(x), d2, c.z + t);
+      }
+    }
+  }
+};
+
+// Unit normals of the points, taken as oriented (outward): from the mesh,
+// else from its faces, else facing the camera. Points facing away from the
+// camera get a zero vector: they are not drawn (back-face culling keeps the
+// far side from showing through at silhouettes).
+std::vector<Vec3> point_normals(const Mesh& m, const Camera& cam) {
+  std::vector<Vec3> n(m.vertices.size(), -cam.forward);
+  if (m.has_normals() || !m.faces.empty()) {
+    Mesh tmp;
+    if (!m.has_normals()) {
+      tmp.vertices = m.vertices;
+      tmp.faces = m.faces;
+      compute_vertex_normals(tmp);
+    }
+    const std::vector<Vec3>& src = m.has_normals() ? m.normals : tmp.normals;
+    for (std::size_t i = 0; i < n.size(); ++i) {
+      const Vec3 v = normalized(src[i]);
+      if (norm2(v) > 0) n[i] = dot(v, cam.forward) > 0 ? Vec3{} : v;
+    }
+  }
+  return n;
+}
+
+void render_disks(const Mesh& m, const Camera& cam, const ColorSource& cs, const std::vector<double>& r,
+                  Frame& fb) {
+  const Shader shade(cam);
+  const std::vector<Vec3> n = point_normals(m, cam);
+  const DiskRaster raster{cam};
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    if (norm2(n[i]) == 0) continue;
+    const Vec3 col = shade(n[i], cs.scalar ? colormap(cs.t((*cs.scalar)[i])) : kPlain);
+    raster(m.vertices[i], n[i], r[i], fb.w, fb.h, [&](std::size_t px, double, double z) {
+      if (z < fb.depth[px]) {
+        fb.depth[px] = float(z);
+        fb.color[px] = col;
+      }
+    });
+  }
+}
+
+// Surface splatting (SPEC §3.8): a visibility pass finds the front-most
+// surface per pixel; an accumulation pass blends the Gaussian-weighted normals
+// and values of every splat within its radius of that depth; normalised and shaded.
+void render_splats(const Mesh& m, const Camera& cam, const ColorSource& cs, const std::vector<double>& r,
+                   Frame& fb) {
+  const Shader shade(cam);
+  const std::vector<Vec3> n = point_normals(m, cam);
+  const DiskRaster raster{cam};
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    if (norm2(n[i]) == 0) continue;
+    raster(m.vertices[i], n[i], r[i], fb.w, fb.h, [&](std::size_t px, double, double z) {
+      if (z < fb.depth[px]) fb.depth[px] = float(z);
+    });
+  }
+  const std::size_t np = fb.depth.size();
+  std::vector<float> wsum(np, 0.f), vsum(cs.scalar ? np : 0, 0.f);
+  std::vector<Vec3> nsum(np);
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    if (norm2(n[i]) == 0) continue;
+    const double v = cs.scalar ? (*cs.scalar)[i] : 0.0;
+    const bool finite = std::isfinite(v);
+    const double tol = r[i], k = -2.0 / (r[i] * r[i]);  // Gaussian with sigma = r/2
+    raster(m.vertices[i], n[i], r[i], fb.w, fb.h, [&](std::size_t px, double d2, double z) {
+      if (z > fb.depth[px] + tol) return;
+      const double wt = std::exp(k * d2);
+      wsum[px] += float(wt);
+      nsum[px] += wt * n[i];
+      if (cs.scalar && finite) vsum[px] += float(wt * v);
+    });
+  }
+  for (std::size_t px = 0; px < np; ++px) {
+    if (!(fb.depth[px] < kFar) || wsum[px] <= 0) continue;
+    const Vec3 nn = normalized(nsum[px]);
+    const Vec3 base = cs.scalar ? colormap(cs.t(vsum[px] / wsum[px])) : kPlain;
+    fb.color[px] = shade(nn, base);
+  }
+}
+
+// Auto radius: this factor times the distance to the kNeighbors-th nearest
+// neighbour (about the local spacing, so adaptive samples stay hole-free).
+constexpr int kNeighbors = 6;
+constexpr double kDiskFactor = 0.9, kSplatFactor = 1.0;
+
+// Radius per point, world units: `fixed` when > 0, else factor × local
+// spacing (clamped to [0.25, 4] × its mean; `fallback` when unknown).
+std::vector<double> point_radii(const std::vector<Vec3>& pts, double fixed, double factor, double fallback) {
+  std::vector<double> r(pts.size(), fixed);
+  if (fixed <= 0) {
+    const int k = int(std::min<std::size_t>(kNeighbors, pts.empty() ? 1 : pts.size() - 1));
+    const std::vector<double> d = nearest_neighbor_distances(pts, std::max(k, 1));
+    double sum = 0;
+    std::size_t count = 0;
+    for (double x : d)
+      if (x > 0) {
+        sum += x;
+        ++count;
+      }
+    const double mean = count ? sum / double(count) : fallback;
+    for (std::size_t i = 0; i < pts.size(); ++i)
+      r[i] = factor * (d[i] > 0 ? std::clamp(d[i], 0.25 * mean, 4 * mean) : mean);
+  }
+  return r;
+}
+
+// What render() draws with: the resolved mode, the camera and, for points,
+// the radius of each disk.
+struct Setup {
+  std::string mode;
+  Camera cam;
+  std::vector<double> radii;
+};
+
+Setup setup(const Mesh& m, const RenderParams& p) {
+  check_params(p);
+  m.validate("render");
+  if (m.vertices.empty()) throw InputError("render: the mesh has no vertices; expected at least one");
+  Setup s;
+  s.mode = p.mode;
+  if (s.mode == "auto") s.mode = m.faces.empty() ? "splats" : "mesh";
+  if (s.mode == "mesh" && m.faces.empty())
+    throw InputError("render: mode \"mesh\" needs faces; the input has none (use disks or splats)");
+  double margin = 0;
+  if (s.mode != "mesh") {
+    Box box;
+    for (const Vec3& v : m.vertices)
+      if (is_finite(v)) box.extend(v);
+    s.radii = point_radii(m.vertices, p.radius, s.mode == "splats" ? kSplatFactor : kDiskFactor,
+                          0.01 * norm(box.size()));
+    for (double r : s.radii) margin = std::max(margin, r);
+  }
+  s.cam = fit_camera(m.vertices, p, margin);
+  // Never smaller than about a pixel, so every point shows.
+  for (double& r : s.radii) r = std::max(r, 0.75 / s.cam.scale);
+  return s;
+}
+
+}  // namespace
+
+Camera fit_camera(const std::vector<Vec3>& points, const RenderParams& p, double margin) {
+  check_params(p);
+  Box box;
+  for (const Vec3& v : points)
+    if (is_finite(v)) box.extend(v);
+  Camera c;
+  c.width = p.width;
+  c.height = p.height;
+  c.center = box.empty() ? Vec3{} : 0.5 * (box.lo + box.hi);
+  double r2 = 0;
+  for (const Vec3& v : points)
+    if (is_finite(v)) r2 = std::max(r2, norm2(v - c.center));
+  double radius = std::sqrt(r2) + std::max(0.0, margin);
+  if (!(radius > 0) || !std::isfinite(radius)) radius = 1;
+  c.scale = std::min(p.width, p.height) / (2 * 1.05 * radius);
+  // Horizontal basis (a, b) and up axis u, right-handed.
+  Vec3 a{1, 0, 0}, b{0, 1, 0}, u{0, 0, 1};
+  if (p.up == "y") { a = {0, 0, 1}; b = {1, 0, 0}; u = {0, 1, 0}; }
+  if (p.up == "x") { a = {0, 1, 0}; b = {0, 0, 1}; u = {1, 0, 0}; }
+  const double az = p.azimuth_deg * kPi / 180, el = p.elevation_deg * kPi / 180;
+  const Vec3 eye = std::cos(el) * (std::cos(az) * a + std::sin(az) * b) + std::sin(el) * u;
+  c.forward = normalized(-eye);
+  c.right = normalized(-std::sin(az) * a + std::cos(az) * b);
+  if (std::cos(el) < 0) c.right = -c.right;  // past the pole: keep up pointing up
+  c.up = cross(c.right, c.forward);
+  return c;
+}
+
+std::vector<double> nearest_neighbor_distances(const std::vector<Vec3>& pts, int k) {
+  const std::size_t n = pts.size();
+  std::vector<double> out(n, 0.0);
+  if (n < 2 || k < 1) return out;
+  Box box;
+  for (const Vec3& p : pts)
+    if (is_finite(p)) box.extend(p);
+  if (box.empty()) return out;
+  const double diag = norm(box.size());
+  if (!(diag > 0)) return out;
+  // Cells about twice the spacing of a surface sample (diag / sqrt(n)), so the
+  // k nearest are usually within one ring; grown when most points find too
+  // few neighbours within three rings (volume-filling or sparse sets).
+  double h = 2 * diag / std::sqrt(double(n));
+  const std::int64_t lim = std::int64_t(1) << 21;
+  for (int attempt = 0; attempt < 8; ++attempt, h *= 3) {
+    if (diag / h > double(lim / 2)) h = diag / double(lim / 2);
+    auto cell = [&](const Vec3& p, int a) { return std::int64_t(std::floor((p[a] - box.lo[a]) / h)); };
+    auto key = [](std::int64_t x, std::int64_t y, std::int64_t z) {
+      return (std::uint64_t(x) << 42) | (std::uint64_t(y) << 21) | std::uint64_t(z);
+    };
+    std::vector<std::pair<std::uint64_t, std::uint32_t>> order;
+    order.reserve(n);
+    for (std::size_t i = 0; i < n; ++i)
+      if (is_finite(pts[i])) order.emplace_back(key(cell(pts[i], 0), cell(pts[i], 1), cell(pts[i], 2)), std::uint32_t(i));
+    std::sort(order.begin(), order.end());
+    std::unordered_map<std::uint64_t, std::pair<std::uint32_t, std::uint32_t>> grid;
+    grid.reserve(order.size());
+    for (std::size_t i = 0; i < order.size();) {
+      std::size_t j = i;
+      while (j < order.size() && order[j].first == order[i].first) ++j;
+      grid.emplace(order[i].first, std::make_pair(std::uint32_t(i), std::uint32_t(j - i)));
+      i = j;
+    }
+    constexpr int kRings = 3;
+    std::vector<double> best;  // k smallest squared distances, ascending
+    std::size_t found = 0;
+    std::fill(out.begin(), out.end(), 0.0);
+    for (const auto& entry : order) {
+      const Vec3& p = pts[entry.second];
+      const std::int64_t cx = cell(p, 0), cy = cell(p, 1), cz = cell(p, 2);
+      best.assign(std::size_t(k), std::numeric_limits<double>::infinity());
+      for (int ring = 0; ring <= kRings; ++ring) {
+        for (std::int64_t dz = -ring; dz <= ring; ++dz)
+          for (std::int64_t dy = -ring; dy <= ring; ++dy)
+            for (std::int64_t dx = -ring; dx <= ring; ++dx) {
+              if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) != ring) continue;
+              const std::int64_t x = cx + dx, y = cy + dy, z = cz + dz;
+              if (x < 0 || y < 0 || z < 0 || x >= lim || y >= lim || z >= lim) continue;
+              const auto it = grid.find(key(x, y, z));
+              if (it == grid.end()) continue;
+              const std::uint32_t b = it->second.first, e = b + it->second.second;
+              for (std::uint32_t q = b; q < e; ++q) {
+                const double d2 = norm2(pts[order[q].second] - p);
+                if (d2 > 0 && d2 < best.back()) {
+                  std::size_t at = best.size() - 1;
+                  while (at > 0 && best[at - 1] > d2) {
+                    best[at] = best[at - 1];
+                    --at;
+                  }
+                  best[at] = d2;
+                }
+              }
+            }
+        // Anything in further rings is at least ring * h away.
+        if (best.back() <= (ring * h) * (ring * h)) break;
+      }
+      if (best.back() < std::numeric_limits<double>::infinity()) {
+        out[entry.second] = std::sqrt(best.back());
+        ++found;
+      }
+    }
+    if (found * 10 >= order.size() * 9) return out;
+  }
+  return out;
+}
+
+double mean_nearest_neighbor_distance(const std::vector<Vec3>& pts) {
+  double sum = 0;
+  std::size_t count = 0;
+  for (double d : nearest_neighbor_distances(pts, 1))
+    if (d > 0) {
+      sum += d;
+      ++count;
+    }
+  return count ? sum / double(count) : 0;
+}
+
+Camera render_camera(const Mesh& m, const RenderParams& p) { return setup(m, p).cam; }
+
+Image render(const Mesh& m, const RenderParams& p) {
+  const Setup s = setup(m, p);
+  const ColorSource cs = color_source(m, p.color_by);
+  if (cs.label && s.mode != "mesh")
+    throw InputError("render: face property " + quote(p.color_by) +
+                     " can only colour mode \"mesh\"; expected a vertex property");
+  Frame fb(p.width, p.height);
+  if (s.mode == "mesh") render_mesh(m, s.cam, cs, p.edges, fb);
+  else if (s.mode == "disks") render_disks(m, s.cam, cs, s.radii, fb);
+  else render_splats(m, s.cam, cs, s.radii, fb);
+  return fb.to_image(p.background);
+}
+
+}  // namespace pm
