@@ -457,7 +457,7 @@ MaterialsPipelineResult mesh_materials_pipeline(const Volume& in, const Material
   if (!(p.delta > 0)) throw UsageError("--delta " + num(p.delta) + "; expected > 0 (e.g. 0.3)");
   if (p.spacing < 0) throw UsageError("--spacing " + num(p.spacing) + "; expected > 0 world units (0 = sizing field)");
   const bool morph = !(p.morph_ops == "none" && p.downsample == 1);
-  Stages stages("ch6", (morph ? 6 : 5) + (p.spacing > 0 ? 0 : 2) + 1, p.progress, res.seconds);
+  Stages stages("ch6", (morph ? 6 : 5) + (p.spacing > 0 ? 0 : 2), p.progress, res.seconds);
 
   // volconv --type int32 [--merge] [--min-voxels] [--pad --pad-value]
   Volume lv;

@@ -20,7 +20,8 @@ Parameters, defaults and units are the tools' (see `particles --help`,
 Makefile.pipeline); errors are Python exceptions: bad values or bad data
 ValueError, unreadable files OSError. Long calls release the GIL (one call
 runs at a time); progress goes to `progress=callable(label, done, total,
-detail)`, or to tqdm bars when tqdm is installed (progress=False: none);
+detail)`, or to tqdm bars when tqdm is installed (progress=False, or the
+environment variable PM_NO_TQDM=1: none);
 Ctrl-C raises KeyboardInterrupt and stops the run cleanly.
 """
 from __future__ import annotations
