@@ -71,6 +71,8 @@ NOPTS = os.path.join(DATA, "empty.ply")
 SPHERE_PTS = os.path.join(DATA, "sphere_points.ply")
 TET = os.path.join(DATA, "tet.off")
 UNWRITABLE = os.path.join(T, "no_such_dir", "out")
+# World frame (issue 21): NRRD "space" and "space directions" of different dimensions.
+SPACE_CONFLICT = os.path.join(DATA, "space_conflict.nrrd")
 
 # --- the tools and how each is called ----------------------------------------
 # Each tool: a function (input, output) -> argv for its main input, the kind of
@@ -122,6 +124,11 @@ EXTRA = [
     (P, "sizing NaN/Inf", ["--implicit", "sphere", "--sizing", NAN_V, "-o", o(".ply")], 1, NAN_V),
     (P, "sizing 2-D", ["--implicit", "sphere", "--sizing", PLANE, "-o", o(".ply")], 1, PLANE),
     (P, "no surface", ["-i", FAR, "--iso", "0", "--spacing", "0.5", "-o", o(".ply")], 1, FAR),
+    # a NRRD whose space and space directions disagree in dimension
+    ("volconv", "space vs space directions", [SPACE_CONFLICT, o(".nrrd")], 1, SPACE_CONFLICT),
+    ("morph", "space vs space directions", [SPACE_CONFLICT, o(".nrrd"), "--op", "dilate"], 1, SPACE_CONFLICT),
+    (P, "space vs space directions", ["-i", SPACE_CONFLICT, "--iso", "0.5", "--spacing", "0.5", "-o", o(".ply")], 1,
+     SPACE_CONFLICT),
     # wrong-type volumes: labels where a distance field is expected and the reverse
     ("medialaxis", "labels, not a distance field", [MASK, o(".ply")], 1, MASK),
     ("sizingfield", "labels, not a distance field", ["--sdf", MASK, "--ma", MA, "-o", o(".nrrd")], 1, MASK),
@@ -155,6 +162,13 @@ EXTRA = [
     ("baseline", "mode bogus", ["bogus", "-i", SDF, "-o", o(".ply")], 2, "bogus"),
     ("baseline", "no surface", ["mc", "-i", FAR, "--iso", "0", "-o", o(".ply")], 1, FAR),
     ("multiparticles", "--spacing 0", ["--materials", MASK, "--spacing", "0", "-o", o(".ply")], 2, "spacing"),
+    # unsupported extensions of the other outputs and an unknown --frame (issue 21), inputs missing
+    ("tetlabel", "--tets .obj", [MISSING_M, "--implicit", "sphere", "-o", o(".ply"), "--tets", o(".obj")], 2, o(".obj")),
+    ("tetlabel", "--frame xyz", [MISSING_M, "--implicit", "sphere", "-o", o(".ply"), "--frame", "xyz"], 2, "--frame"),
+    ("mcinit", "points as .mesh", [MISSING_V, o(".mesh"), "--iso", "0"], 2, o(".mesh")),
+    ("mcinit", "--stats .txt", [MISSING_V, o(".ply"), "--iso", "0", "--stats", o(".txt")], 2, o(".txt")),
+    ("medialaxis", "--volume .xyz", [MISSING_V, o(".ply"), "--volume", o(".xyz")], 2, o(".xyz")),
+    ("sizingfield", "--lfs .xyz", ["--sdf", MISSING_V, "--ma", MA, "-o", o(".nrrd"), "--lfs", o(".xyz")], 2, o(".xyz")),
 ]
 
 
@@ -187,6 +201,10 @@ for t in present:
             "tighten": MASK, "medialaxis": SDF, "sizingfield": SDF, "tetlabel": SPHERE_PTS, "meshstats": TET,
             "baseline": SDF, "multiparticles": MASK}[t]
     rows.append((t, "unwritable output", d["argv"](good, UNWRITABLE + d["ext"]), 1, UNWRITABLE + d["ext"]))
+    # An output extension the tool cannot write is a usage error found before the
+    # (here missing) input is opened: exit 2, not the missing file's exit 1.
+    missing = MISSING_V if d["kind"] == "volume" else MISSING_M
+    rows.append((t, "unsupported output extension, input missing", d["argv"](missing, o(".xyz")), 2, o(".xyz")))
 rows += [r for r in EXTRA if r[0] in present]
 
 for tool, case, argv, code, names in rows:

@@ -43,7 +43,7 @@ expect 1 "baseline: error: .*isovalue 5 is outside the value range" \
   "$BIN/baseline" mc -i "$T/sphere.nrrd" --iso 5 -o "$T/x.ply"
 expect 1 "baseline: error: CGAL Mesh_3 labels baseline: voxel type float; expected an integer label map" \
   "$BIN/baseline" cgal-labels -i "$T/sphere.nrrd" --size 0.2 -o "$T/x.ply"
-expect 2 "baseline: usage error: output .*x.xyz.*expected a .ply" \
+expect 2 "baseline: usage error: --output .*x.xyz.*unknown mesh extension" \
   "$BIN/baseline" mc -i "$T/sphere.nrrd" -o "$T/x.xyz"
 [ ! -e "$T/x.ply" ] || { echo "a failed run left $T/x.ply"; exit 1; }
 echo "baseline: ok"

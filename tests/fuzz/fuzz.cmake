@@ -24,17 +24,20 @@ add_library(pmfuzzcore STATIC
   libcore/src/io/gzip.cpp
   libcore/src/io/mesh.cpp
   libcore/src/io/mesh_cgal.cpp
+  libcore/src/io/nektar.cpp
   libcore/src/field/field.cpp
   libcore/src/field/kernels.cpp
   libcore/src/field/volume_field.cpp
   libcore/src/field/implicits.cpp
   libcore/src/field/curvature.cpp
   libcore/src/field/sizing.cpp
+  libcore/src/field/hp_field.cpp
+  libcore/src/baseline/lattice_iso.cpp
   libcore/src/sample/particles.cpp
   tests/fuzz/fuzz_util.cpp
 )
 target_include_directories(pmfuzzcore PUBLIC libcore/include tests/fuzz ${NIFTI_INCLUDE_DIR}/nifti
-  ${CLI11_INCLUDE_DIR} ${TEEM_INCLUDE_DIR} ${NIFTI_INCLUDE_DIR})
+  ${CLI11_INCLUDE_DIR} ${TEEM_INCLUDE_DIR} ${NIFTI_INCLUDE_DIR} ${TINYXML2_INCLUDE_DIR})
 target_compile_definitions(pmfuzzcore PUBLIC PM_VERSION="${PROJECT_VERSION}")
 target_compile_options(pmfuzzcore PUBLIC ${PM_FUZZ_FLAGS})
 # TBB's concurrent_hash_map (OpenVDB's accessor registry, instantiated in
@@ -46,12 +49,12 @@ set_source_files_properties(libcore/src/io/vdb.cpp PROPERTIES COMPILE_OPTIONS "-
 target_link_options(pmfuzzcore PUBLIC -fsanitize=address,undefined)
 target_link_libraries(pmfuzzcore PUBLIC
   OpenVDB::openvdb TBB::tbb CGAL::CGAL nlohmann_json::nlohmann_json
-  ${TEEM_LIBRARY} ${NIFTI_LIBRARY} ZLIB::ZLIB Threads::Threads)
+  ${TEEM_LIBRARY} ${NIFTI_LIBRARY} ZLIB::ZLIB ${TINYXML2_LIBRARY} Threads::Threads)
 if(ZNZ_LIBRARY)
   target_link_libraries(pmfuzzcore PUBLIC ${ZNZ_LIBRARY})
 endif()
 
-set(PM_FUZZ_TARGETS nrrd metaimage nifti inr vdb ply off obj stl seeds sizing)
+set(PM_FUZZ_TARGETS nrrd metaimage nifti inr vdb ply off obj stl seeds sizing nektar_mesh nektar_field)
 foreach(t ${PM_FUZZ_TARGETS})
   add_executable(fuzz_${t} tests/fuzz/fuzz_${t}.cpp)
   target_link_libraries(fuzz_${t} PRIVATE pmfuzzcore)

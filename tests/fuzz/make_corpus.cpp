@@ -11,10 +11,12 @@
 #include <iterator>
 #include <sstream>
 
+#include "../unit/nektar_fixtures.h"
 #include "fuzz_util.h"
 #include "pm/io/inr.h"
 #include "pm/io/mesh.h"
-#include "pm/io/mesh_formats.h"
+#include "pm/io/mesh_cgal.h"
+#include "pm/io/ply.h"
 #include "pm/io/metaimage.h"
 #include "pm/io/nifti.h"
 #include "pm/io/nrrd.h"
@@ -51,6 +53,51 @@ pm::Mesh tetrahedron(bool extras) {
     m.face_ints["label"] = {1, 1, 2, 2};
   }
   return m;
+}
+
+
+// Nektar++ meshes and fields (the generators of the unit tests).
+void write_nektar_seeds(const fs::path& out) {
+  namespace t = pm::test;
+  t::GenMesh tets, hexes;
+  int v[5];
+  const pm::Vec3 p[5] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 1, 1}};
+  for (int k = 0; k < 5; ++k) v[k] = tets.vertex(p[k]);
+  tets.add_tet({v[0], v[1], v[2], v[3]});
+  tets.add_tet({v[1], v[2], v[3], v[4]});
+  int w[3][2][2];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 2; ++j)
+      for (int k = 0; k < 2; ++k) w[i][j][k] = hexes.vertex({double(i), double(j), double(k)});
+  hexes.add_hex({w[0][0][0], w[1][0][0], w[1][1][0], w[0][1][0], w[0][0][1], w[1][0][1], w[1][1][1], w[0][1][1]});
+  hexes.add_hex({w[1][0][0], w[2][0][0], w[2][1][0], w[1][1][0], w[1][0][1], w[2][0][1], w[2][1][1], w[1][1][1]});
+  spit(out / "nektar_mesh" / "tets_plain.xml", t::mesh_xml(tets, false));
+  spit(out / "nektar_mesh" / "tets_b64z.xml", t::mesh_xml(tets, true));
+  spit(out / "nektar_mesh" / "hexes_plain.xml", t::mesh_xml(hexes, false));
+  spit(out / "nektar_mesh" / "hexes_b64z.xml", t::mesh_xml(hexes, true));
+  hexes.curved = "    <CURVED>\n      <E ID=\"0\" EDGEID=\"3\" TYPE=\"PolyEvenlySpaced\" NUMPOINTS=\"3\"> 0 0 0  0.5 0.1 0  1 0 0 </E>\n    </CURVED>\n";
+  spit(out / "nektar_mesh" / "hexes_curved.xml", t::mesh_xml(hexes, false));
+  t::GenBlock hex;
+  hex.ids = "0-1";
+  for (int k = 0; k < 128; ++k) hex.coeffs.push_back(0.1 * (k % 7) - 0.2);
+  spit(out / "nektar_field" / "hexes.fld", t::field_xml({hex}));
+  t::GenBlock mix;
+  mix.ids = "1,0";
+  mix.modes = "MIXORDER:2,2,2,3,3,3";
+  for (int k = 0; k < 8 + 27; ++k) mix.coeffs.push_back(0.05 * k);
+  spit(out / "nektar_field" / "hexes_mixorder.fld", t::field_xml({mix}));
+  t::GenBlock a, b;
+  for (t::GenBlock* blk : {&a, &b}) {
+    blk->shape = "Tetrahedron";
+    blk->basis = "Modified_A,Modified_B,Modified_C";
+    blk->modes = "UNIORDER:3,3,3";
+    blk->fields = "u,p";
+    for (int k = 0; k < 20; ++k) blk->coeffs.push_back(0.3 - 0.07 * k);
+  }
+  a.ids = "1";
+  b.ids = "0";
+  b.compressed_attr = false;
+  spit(out / "nektar_field" / "tets_two_blocks.fld", t::field_xml({a, b}));
 }
 
 }  // namespace
@@ -121,6 +168,7 @@ int main(int argc, char** argv) {
     seeds.normals = seeds.vertices;
     pm::write_ply(seeds, (tmp / "s.ply").string(), true);
     spit(out / "seeds" / "three_binary.ply", slurp(tmp / "s.ply"));
+    write_nektar_seeds(out);
   } catch (const std::exception& e) {
     std::cerr << "fuzz_make_corpus: " << e.what() << "\n";
     return 1;

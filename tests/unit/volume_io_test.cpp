@@ -263,15 +263,92 @@ TEST(VolumeIoRoundTrip, VdbFloatKeepsValuesDimsAndGeometry) {
   EXPECT_EQ(files_in(dir), 2u);
 }
 
-TEST(VolumeIoRoundTrip, VdbStoresIntegersAsFloat) {
+TEST(VolumeIoRoundTrip, VdbStoresLabelsAsIntegerGridsOfTheSameType) {
+  ensure_openvdb_initialized();
   const std::string dir = test::temp_dir();
-  Volume v(VoxelType::u16, kDims, aligned_geometry());
-  for (std::size_t i = 0; i < v.count(); ++i) v.set(i, double(i * 1000 % 65536));
-  write_volume(v, dir + "/u.vdb");
-  const Volume r = read_volume(dir + "/u.vdb");
-  EXPECT_EQ(r.type(), VoxelType::f32);
-  ASSERT_TRUE(r.dims() == v.dims());
-  for (std::size_t i = 0; i < v.count(); ++i) ASSERT_EQ(r.get(i), v.get(i)) << "voxel " << i;
+  // Every integer type comes back with its type and values (the byte pattern
+  // of make_volume reaches each type's extremes), in an int32 grid or, when a
+  // value needs it, an int64 grid, with the metadata that says so.
+  for (VoxelType t : kAllTypes) {
+    if (!is_integer(t)) continue;
+    SCOPED_TRACE(voxel_type_name(t));
+    Volume v = make_volume(t, oblique_geometry());
+    if (t == VoxelType::u64) {  // VDB's widest integer grid is int64: stay below 2^63
+      auto* p = v.data<std::uint64_t>();
+      for (std::size_t i = 0; i < v.count(); ++i) p[i] >>= 1;
+    }
+    const std::string path = dir + "/" + voxel_type_name(t) + ".vdb";
+    write_volume(v, path);
+    const Volume r = read_volume(path);
+    expect_same_voxels(v, r);
+    expect_geometry_near(r.geometry(), v.geometry(), 1e-9);
+    openvdb::io::File f(path);
+    f.open();
+    const openvdb::GridBase::Ptr g = f.readGrid("field");
+    const bool wide = t == VoxelType::u32 || t == VoxelType::u64 || t == VoxelType::i64;
+    EXPECT_EQ(g->type(), wide ? openvdb::Int64Grid::gridType() : openvdb::Int32Grid::gridType());
+    EXPECT_EQ(g->metaValue<std::string>("pm_voxel_type"), voxel_type_name(t));
+    EXPECT_TRUE(g->metaValue<bool>("pm_labels"));
+    EXPECT_EQ(g->metaValue<std::string>("pm_world_frame"), "LPS");
+  }
+  // A label map of small labels is an int32 grid; float stays a float grid.
+  Volume labels(VoxelType::u8, kDims, aligned_geometry());
+  labels.set(2, 1, 1, 3);
+  labels.set(4, 3, 2, 250);
+  write_volume(labels, dir + "/labels.vdb");
+  EXPECT_EQ(read_volume(dir + "/labels.vdb").type(), VoxelType::u8);
+  openvdb::io::File lf(dir + "/labels.vdb");
+  lf.open();
+  EXPECT_EQ(lf.readGrid("field")->type(), openvdb::Int32Grid::gridType());
+  write_volume(make_volume(VoxelType::f32, aligned_geometry()), dir + "/f.vdb");
+  openvdb::io::File ff(dir + "/f.vdb");
+  ff.open();
+  EXPECT_EQ(ff.readGrid("field")->type(), openvdb::FloatGrid::gridType());
+  EXPECT_EQ(read_volume(dir + "/f.vdb").type(), VoxelType::f32);
+  // uint64 values of 2^63 and more do not fit any VDB grid: refused, no file.
+  Volume huge(VoxelType::u64, kDims, aligned_geometry());
+  huge.data<std::uint64_t>()[5] = std::uint64_t(1) << 63;
+  expect_throw_with<InputError>([&] { write_volume(huge, dir + "/huge.vdb"); }, "below 2^63");
+  EXPECT_FALSE(fs::exists(dir + "/huge.vdb"));
+}
+
+TEST(VolumeIoRoundTrip, VdbIntegerGridsFromElsewhereAndBadMetadata) {
+  ensure_openvdb_initialized();
+  const std::string dir = test::temp_dir();
+  // An int32 grid without our metadata reads as int32, taken as LPS.
+  openvdb::Int32Grid::Ptr g = openvdb::Int32Grid::create(0);
+  g->tree().setValue(openvdb::Coord(0, 0, 0), 5);
+  g->tree().setValue(openvdb::Coord(2, 0, 0), -7);
+  g->setName("seg");
+  openvdb::io::File(dir + "/plain.vdb").write(openvdb::GridPtrVec{g});
+  const Volume v = read_volume(dir + "/plain.vdb");
+  EXPECT_EQ(v.type(), VoxelType::i32);
+  EXPECT_TRUE((v.dims() == Dims{3, 1, 1}));
+  EXPECT_EQ(v.get(0), 5.0);
+  EXPECT_EQ(v.get(2), -7.0);
+  EXPECT_FALSE(v.frame_source().anatomical);
+  EXPECT_NE(v.frame_source().note.find("taken as LPS"), std::string::npos);
+  // Values that do not fit the type the metadata names.
+  g->insertMeta("pm_voxel_type", openvdb::StringMetadata("uint8"));
+  openvdb::io::File(dir + "/lie.vdb").write(openvdb::GridPtrVec{g});
+  expect_throw_with<InputError>([&] { read_volume(dir + "/lie.vdb"); }, "holds -7, outside its pm_voxel_type uint8");
+  g->insertMeta("pm_voxel_type", openvdb::StringMetadata("float"));
+  openvdb::io::File(dir + "/float.vdb").write(openvdb::GridPtrVec{g});
+  expect_throw_with<InputError>([&] { read_volume(dir + "/float.vdb"); }, "expected an integer voxel type");
+  // A grid in RAS is taken to LPS; an unknown frame is refused.
+  g->insertMeta("pm_voxel_type", openvdb::StringMetadata("int16"));
+  g->insertMeta("pm_world_frame", openvdb::StringMetadata("RAS"));
+  g->setTransform(openvdb::math::Transform::createLinearTransform(2.0));
+  openvdb::io::File(dir + "/ras.vdb").write(openvdb::GridPtrVec{g});
+  const Volume r = read_volume(dir + "/ras.vdb");
+  EXPECT_EQ(r.type(), VoxelType::i16);
+  const Vec3 p = r.geometry().index_to_world({2, 0, 0});  // RAS (4, 0, 0)
+  EXPECT_DOUBLE_EQ(p.x, -4.0);
+  EXPECT_DOUBLE_EQ(r.geometry().directions[1][1], -2.0);
+  EXPECT_DOUBLE_EQ(r.geometry().directions[2][2], 2.0);
+  g->insertMeta("pm_world_frame", openvdb::StringMetadata("RIP"));
+  openvdb::io::File(dir + "/rip.vdb").write(openvdb::GridPtrVec{g});
+  expect_throw_with<InputError>([&] { read_volume(dir + "/rip.vdb"); }, "pm_world_frame \"RIP\"; expected LPS or RAS");
 }
 
 TEST(VolumeIoRoundTrip, VdbLevelSetIncludesInactiveVoxelsOfTheBox) {
@@ -285,7 +362,7 @@ TEST(VolumeIoRoundTrip, VdbLevelSetIncludesInactiveVoxelsOfTheBox) {
   other->setName("labels");
   openvdb::io::File(dir + "/ls.vdb").write(openvdb::GridPtrVec{other, ls});
 
-  const Volume v = read_volume(dir + "/ls.vdb");  // skips the int grid
+  const Volume v = read_volume(dir + "/ls.vdb");  // skips the empty int grid
   EXPECT_EQ(v.type(), VoxelType::f32);
   EXPECT_EQ(v.dims().nx, std::size_t(box.dim().x()));
   EXPECT_EQ(v.dims().nz, std::size_t(box.dim().z()));
@@ -304,8 +381,14 @@ TEST(VolumeIoRoundTrip, VdbLevelSetIncludesInactiveVoxelsOfTheBox) {
   const Vec3 s = v.geometry().world_to_index({3, 2, 3});
   EXPECT_NEAR(v.get(std::size_t(std::lround(s.x)), std::size_t(std::lround(s.y)), std::size_t(std::lround(s.z))), 0.0,
               0.13);
-  // A named grid of the wrong type is refused by read_vdb.
-  expect_throw_with<InputError>([&] { read_vdb(dir + "/ls.vdb", "labels"); }, "expected a float or double grid");
+  // A named grid of a type we do not read is refused by read_vdb; a named
+  // empty grid is reported as empty.
+  openvdb::Vec3SGrid::Ptr vectors = openvdb::Vec3SGrid::create();
+  vectors->setName("vectors");
+  openvdb::io::File(dir + "/vec.vdb").write(openvdb::GridPtrVec{vectors, ls});
+  expect_throw_with<InputError>([&] { read_vdb(dir + "/vec.vdb", "vectors"); },
+                                "expected a float, double, int32 or int64 grid");
+  expect_throw_with<InputError>([&] { read_vdb(dir + "/ls.vdb", "labels"); }, "no active voxels");
   expect_throw_with<InputError>([&] { read_vdb(dir + "/ls.vdb", "nope"); }, "no grid named");
 }
 
@@ -368,7 +451,7 @@ TEST(VolumeIoRoundTrip, NrrdSpacingsAxisMinsAndCenters) {
   write_text(dir + "/n.nrrd", "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 1 1 1\nencoding: raw\n\na");
   const Volume n = read_volume(dir + "/n.nrrd");
   for (int a = 0; a < 3; ++a) EXPECT_EQ(n.geometry().spacing(a), 1.0);
-  // A named space keeps its coordinates as they are.
+  // left-posterior-superior is libcore's own frame: kept as it is.
   write_text(dir + "/lps.nrrd", "NRRD0004\ntype: uint8\ndimension: 3\nspace: left-posterior-superior\n"
                                 "sizes: 1 1 1\nspace directions: (-1,0,0) (0,2,0) (0,0,3)\n"
                                 "space origin: (5,6,7)\nencoding: raw\n\na");
@@ -400,6 +483,293 @@ TEST(VolumeIoRoundTrip, GzipHelpers) {
   std::vector<unsigned char> out(100);
   EXPECT_THROW(inflate_buffer(junk.data(), junk.size(), out.data(), out.size(), "t"), InputError);
   EXPECT_GE(max_inflated_size(1000), 1000u * 1032u);
+}
+
+// ---------------------------------------------------------------------------
+// World frame: every reader converts into LPS, every writer out of it
+// (pm/base/volume.h).
+
+// A one-voxel-per-axis-step NRRD text header + data in `space`.
+std::string nrrd_in_space(const std::string& space_line, const std::string& dirs, const std::string& origin) {
+  return "NRRD0004\ntype: uint8\ndimension: 3\n" + space_line + "sizes: 2 1 1\nspace directions: " + dirs +
+         "\nspace origin: " + origin + "\nencoding: raw\n\nab";
+}
+
+TEST(VolumeIoFrame, NrrdSpacesAreConvertedToLps) {
+  const std::string dir = test::temp_dir();
+  struct Case {
+    const char* space;
+    Vec3 signs;
+    bool anatomical;
+  };
+  const Case cases[] = {{"right-anterior-superior", {-1, -1, 1}, true}, {"RAS", {-1, -1, 1}, true},
+                        {"left-anterior-superior", {1, -1, 1}, true},   {"left-posterior-superior", {1, 1, 1}, true},
+                        {"scanner-xyz", {1, 1, 1}, true},               {"3D-right-handed", {1, 1, 1}, false},
+                        {"3D-left-handed", {1, 1, 1}, false}};
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.space);
+    write_text(dir + "/s.nrrd", nrrd_in_space(std::string("space: ") + c.space + "\n", "(0.5,0.25,0) (0,2,0) (0,0,3)",
+                                              "(10,20,30)"));
+    const Volume v = read_volume(dir + "/s.nrrd");
+    // Voxel (1,0,0) sits at (10.5, 20.25, 30) in the file's space.
+    const Vec3 p = v.geometry().index_to_world({1, 0, 0});
+    EXPECT_DOUBLE_EQ(p.x, c.signs.x * 10.5);
+    EXPECT_DOUBLE_EQ(p.y, c.signs.y * 20.25);
+    EXPECT_DOUBLE_EQ(p.z, c.signs.z * 30);
+    EXPECT_EQ(v.frame_source().format, "NRRD");
+    EXPECT_EQ(v.frame_source().anatomical, c.anatomical);
+    EXPECT_EQ(v.frame_source().space.empty(), false);
+  }
+  // The "-time" spaces: the fourth component of each direction must be 0.
+  write_text(dir + "/t.nrrd", nrrd_in_space("space: right-anterior-superior-time\n",
+                                            "(1,0,0,0) (0,1,0,0) (0,0,1,0)", "(10,20,30,5)"));
+  const Volume t = read_volume(dir + "/t.nrrd");
+  EXPECT_DOUBLE_EQ(t.geometry().origin.x, -10);
+  EXPECT_DOUBLE_EQ(t.geometry().directions[1][1], -1);
+  write_text(dir + "/tt.nrrd", nrrd_in_space("space: right-anterior-superior-time\n",
+                                             "(1,0,0,0) (0,1,0,0.5) (0,0,1,0)", "(10,20,30,5)"));
+  expect_throw_with<InputError>([&] { read_volume(dir + "/tt.nrrd"); }, "axis 1 has time component 0.5");
+  // No named space: kept as given, and said so.
+  write_text(dir + "/n.nrrd", nrrd_in_space("space dimension: 3\n", "(1,0,0) (0,1,0) (0,0,1)", "(10,20,30)"));
+  const Volume n = read_volume(dir + "/n.nrrd");
+  EXPECT_DOUBLE_EQ(n.geometry().origin.x, 10);
+  EXPECT_FALSE(n.frame_source().anatomical);
+}
+
+TEST(VolumeIoFrame, TwoNrrdsDifferingOnlyInSpaceDiffer) {
+  const std::string dir = test::temp_dir();
+  write_text(dir + "/lps.nrrd", nrrd_in_space("space: left-posterior-superior\n", "(1,0,0) (0,1,0) (0,0,1)", "(10,20,30)"));
+  write_text(dir + "/ras.nrrd", nrrd_in_space("space: right-anterior-superior\n", "(1,0,0) (0,1,0) (0,0,1)", "(10,20,30)"));
+  const Geometry a = read_volume(dir + "/lps.nrrd").geometry(), b = read_volume(dir + "/ras.nrrd").geometry();
+  EXPECT_DOUBLE_EQ(a.origin.x, 10);
+  EXPECT_DOUBLE_EQ(b.origin.x, -10);
+  EXPECT_DOUBLE_EQ(b.origin.y, -20);
+  EXPECT_DOUBLE_EQ(b.origin.z, 30);
+  EXPECT_DOUBLE_EQ(b.directions[0][0], -1);
+  // Written back, both say LPS with the converted numbers.
+  write_volume(read_volume(dir + "/ras.nrrd"), dir + "/out.nrrd", {false});
+  const std::string h = slurp(dir + "/out.nrrd").substr(0, 400);
+  EXPECT_NE(h.find("space: left-posterior-superior"), std::string::npos) << h;
+  EXPECT_NE(h.find("space origin: (-10,-20,30)"), std::string::npos) << h;
+  EXPECT_NE(h.find("space directions: (-1,0,0) (0,-1,0) (0,0,1)"), std::string::npos) << h;
+}
+
+TEST(VolumeIoFrame, NrrdSpacesWeCannotMapAreErrors) {
+  const std::string dir = test::temp_dir();
+  // A 2-D space for a 3-D volume.
+  write_text(dir + "/2d.nrrd", nrrd_in_space("space: right-up\n", "(1,0) (0,1) (1,1)", "(1,2)"));
+  expect_throw_with<InputError>([&] { read_volume(dir + "/2d.nrrd"); }, "space \"right-up\" is 2-D; expected a 3-D space");
+  // A space Teem does not know: Teem's reason names it.
+  write_text(dir + "/odd.nrrd", nrrd_in_space("space: upside-down\n", "(1,0,0) (0,1,0) (0,0,1)", "(1,2,3)"));
+  expect_throw_with<InputError>([&] { read_volume(dir + "/odd.nrrd"); }, "upside-down");
+  // space and space directions of different dimensions.
+  write_text(dir + "/mix.nrrd", nrrd_in_space("space: left-posterior-superior\n", "(1,0) (0,1) (0,0)", "(1,2,3)"));
+  expect_throw_with<InputError>([&] { read_volume(dir + "/mix.nrrd"); }, "mix.nrrd");
+  write_text(dir + "/mix4.nrrd",
+             nrrd_in_space("space: left-posterior-superior\n", "(1,0,0,0) (0,1,0,0) (0,0,1,0)", "(1,2,3)"));
+  expect_throw_with<InputError>([&] { read_volume(dir + "/mix4.nrrd"); }, "mix4.nrrd");
+  // "space" and "space dimension" that disagree.
+  write_text(dir + "/dim.nrrd", nrrd_in_space("space: left-posterior-superior\nspace dimension: 4\n",
+                                              "(1,0,0,0) (0,1,0,0) (0,0,1,0)", "(1,2,3,0)"));
+  expect_throw_with<InputError>([&] { read_volume(dir + "/dim.nrrd"); }, "dim.nrrd");
+}
+
+// Header fields of a NIfTI-1 file we wrote (.nii, little endian).
+struct NiftiFields {
+  float srow[3][4];
+  float qoffset[3];
+  std::int16_t qform_code, sform_code;
+  unsigned char xyzt_units;
+};
+NiftiFields nifti_fields(const std::string& bytes) {
+  NiftiFields f;
+  std::memcpy(f.srow, bytes.data() + 280, sizeof f.srow);
+  std::memcpy(f.qoffset, bytes.data() + 268, sizeof f.qoffset);
+  std::memcpy(&f.qform_code, bytes.data() + 252, 2);
+  std::memcpy(&f.sform_code, bytes.data() + 254, 2);
+  f.xyzt_units = static_cast<unsigned char>(bytes[123]);
+  return f;
+}
+
+TEST(VolumeIoFrame, NiftiIsWrittenAndReadInRas) {
+  const std::string dir = test::temp_dir();
+  // LPS origin (10, 20, 30), axis 0 along LPS +x: in RAS (-10, -20, 30), axis 0 along -x.
+  Volume v = make_volume(VoxelType::i16, Geometry::with_spacing(0.5, 0.75, 1.25, {10, 20, 30}));
+  write_volume(v, dir + "/a.nii");
+  const NiftiFields f = nifti_fields(slurp(dir + "/a.nii"));
+  EXPECT_FLOAT_EQ(f.srow[0][3], -10);
+  EXPECT_FLOAT_EQ(f.srow[1][3], -20);
+  EXPECT_FLOAT_EQ(f.srow[2][3], 30);
+  EXPECT_FLOAT_EQ(f.srow[0][0], -0.5);
+  EXPECT_FLOAT_EQ(f.srow[1][1], -0.75);
+  EXPECT_FLOAT_EQ(f.srow[2][2], 1.25);
+  EXPECT_FLOAT_EQ(f.qoffset[0], -10);
+  EXPECT_FLOAT_EQ(f.qoffset[1], -20);
+  EXPECT_FLOAT_EQ(f.qoffset[2], 30);
+  EXPECT_EQ(f.sform_code, 1);
+  EXPECT_EQ(f.qform_code, 1);
+  EXPECT_EQ(f.xyzt_units & 7, 2);  // NIFTI_UNITS_MM
+  const Volume r = read_volume(dir + "/a.nii");
+  expect_geometry_near(r.geometry(), v.geometry(), 1e-6);
+  EXPECT_TRUE(r.frame_source().anatomical);
+  EXPECT_NE(r.frame_source().space.find("RAS (sform, scanner_anat, mm)"), std::string::npos) << r.frame_source().space;
+}
+
+TEST(VolumeIoFrame, NiftiUnitsAreTakenToMillimetres) {
+  const std::string dir = test::temp_dir();
+  const Volume v = make_volume(VoxelType::u8, oblique_geometry());
+  write_volume(v, dir + "/mm.nii");
+  std::string bytes = slurp(dir + "/mm.nii");
+  const struct {
+    unsigned char code;
+    double scale;
+    const char* name;
+  } units[] = {{1, 1000.0, "m"}, {3, 0.001, "um"}, {0, 1.0, "unknown units, taken as mm"}};
+  for (const auto& u : units) {
+    SCOPED_TRACE(u.name);
+    bytes[123] = static_cast<char>(u.code | 8);  // + seconds for time, which must not matter
+    write_text(dir + "/u.nii", bytes);
+    const Volume r = read_volume(dir + "/u.nii");
+    for (int a = 0; a < 3; ++a) EXPECT_NEAR(r.geometry().spacing(a), u.scale * v.geometry().spacing(a), 1e-6 * u.scale);
+    EXPECT_NEAR(r.geometry().origin.y, u.scale * v.geometry().origin.y, 1e-6 * u.scale);
+    EXPECT_NE(r.frame_source().space.find(u.name), std::string::npos) << r.frame_source().space;
+  }
+}
+
+TEST(VolumeIoFrame, NiftiWithoutQformOrSformIsInVoxelUnitsWithAWarning) {
+  const std::string dir = test::temp_dir();
+  const Volume v = make_volume(VoxelType::u8, Geometry::with_spacing(2, 3, 4, {10, 20, 30}));
+  write_volume(v, dir + "/a.nii");
+  std::string bytes = slurp(dir + "/a.nii");
+  bytes[252] = bytes[253] = bytes[254] = bytes[255] = 0;
+  write_text(dir + "/a.nii", bytes);
+  testing::internal::CaptureStderr();
+  const Volume r = read_volume(dir + "/a.nii");
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("qform_code and sform_code are both 0"), std::string::npos) << err;
+  EXPECT_NE(err.find("a.nii"), std::string::npos) << err;
+  expect_geometry_near(r.geometry(), Geometry::with_spacing(2, 3, 4), 1e-9);
+  EXPECT_FALSE(r.frame_source().anatomical);
+  expect_same_voxels(v, r);
+}
+
+TEST(VolumeIoFrame, MetaImageAnatomicalOrientation) {
+  const std::string dir = test::temp_dir();
+  // Without a TransformMatrix the code gives the axes: RAI = +x +y +z, LPS =
+  // -x -y -z, PIR: axis 0 -y, axis 1 +z, axis 2 +x.
+  const struct {
+    const char* code;
+    Vec3 dirs[3];
+  } cases[] = {{"RAI", {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}},
+               {"LPS", {{-1, 0, 0}, {0, -1, 0}, {0, 0, -1}}},
+               {"PIR", {{0, -1, 0}, {0, 0, 1}, {1, 0, 0}}}};
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.code);
+    write_text(dir + "/o.mha", std::string("NDims = 3\nOffset = 1 2 3\nAnatomicalOrientation = ") + c.code +
+                                   "\nElementSpacing = 2 3 4\nDimSize = 1 1 1\nElementType = MET_UCHAR\n"
+                                   "ElementDataFile = LOCAL\na");
+    const Volume v = read_volume(dir + "/o.mha");
+    const double sp[3] = {2, 3, 4};
+    for (int a = 0; a < 3; ++a)
+      for (int r = 0; r < 3; ++r) EXPECT_EQ(v.geometry().directions[r][a], sp[a] * c.dirs[a][r]) << a << "," << r;
+    EXPECT_EQ(v.frame_source().space, std::string("LPS (AnatomicalOrientation ") + c.code + ")");
+    // Written back: the same code, and the matrix.
+    write_volume(v, dir + "/back.mha", {false});
+    const std::string h = slurp(dir + "/back.mha").substr(0, 500);
+    EXPECT_NE(h.find(std::string("AnatomicalOrientation = ") + c.code), std::string::npos) << h;
+  }
+  // The writer's code for an oblique volume: the closest axes.
+  write_volume(make_volume(VoxelType::u8, oblique_geometry()), dir + "/obl.mha", {false});
+  EXPECT_NE(slurp(dir + "/obl.mha").find("AnatomicalOrientation = RAI"), std::string::npos);
+  // A TransformMatrix wins over a code that disagrees, with a warning.
+  write_text(dir + "/both.mha", "NDims = 3\nTransformMatrix = 1 0 0 0 1 0 0 0 1\nAnatomicalOrientation = LPS\n"
+                                "DimSize = 1 1 1\nElementType = MET_UCHAR\nElementDataFile = LOCAL\na");
+  testing::internal::CaptureStderr();
+  const Volume b = read_volume(dir + "/both.mha");
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(b.geometry().directions[0][0], 1.0);
+  EXPECT_NE(err.find("AnatomicalOrientation LPS disagrees with the TransformMatrix (RAI)"), std::string::npos) << err;
+  // An unknown code ("???", as some writers put) is ignored.
+  write_text(dir + "/q.mha", "NDims = 3\nAnatomicalOrientation = ???\nDimSize = 1 1 1\nElementType = MET_UCHAR\n"
+                             "ElementDataFile = LOCAL\na");
+  EXPECT_EQ(read_volume(dir + "/q.mha").geometry().directions[1][1], 1.0);
+}
+
+TEST(VolumeIoFrame, InrStoresFlippedAxesReversed) {
+  const std::string dir = test::temp_dir();
+  // A RAS NIfTI's usual geometry in LPS: x and y flipped.
+  Geometry g = Geometry::with_spacing(0.5, 0.75, 1.25, {10, 20, 30});
+  g.directions[0][0] = -0.5;
+  g.directions[1][1] = -0.75;
+  const Volume v = make_volume(VoxelType::f32, g);
+  write_volume(v, dir + "/f.inr");
+  const Volume r = read_volume(dir + "/f.inr");
+  EXPECT_TRUE(r.geometry().axis_aligned());
+  EXPECT_GT(r.geometry().directions[0][0], 0);
+  EXPECT_GT(r.geometry().directions[1][1], 0);
+  EXPECT_FALSE(r.frame_source().anatomical);
+  EXPECT_NE(r.frame_source().note.find("INR has no world frame"), std::string::npos);
+  // Every voxel keeps its world position and value.
+  ASSERT_TRUE(r.dims() == v.dims());
+  for (std::size_t k = 0; k < kDims.nz; ++k)
+    for (std::size_t j = 0; j < kDims.ny; ++j)
+      for (std::size_t i = 0; i < kDims.nx; ++i) {
+        const Vec3 p = v.geometry().index_to_world(Vec3(double(i), double(j), double(k)));
+        const Vec3 q = r.geometry().world_to_index(p);
+        const std::size_t ri = std::size_t(std::lround(q.x)), rj = std::size_t(std::lround(q.y)),
+                          rk = std::size_t(std::lround(q.z));
+        ASSERT_NEAR(q.x, double(ri), 1e-9);
+        ASSERT_NEAR(q.y, double(rj), 1e-9);
+        ASSERT_NEAR(q.z, double(rk), 1e-9);
+        ASSERT_EQ(r.get(ri, rj, rk), v.get(i, j, k)) << i << " " << j << " " << k;
+      }
+}
+
+// Every pair of formats keeps the anatomy: the volume written in format A,
+// read, written in format B and read again has the same voxel at the same
+// LPS point (the formats' own frames are checked by the tests above and by
+// nibabel in tests/cli/frames_test.py).
+TEST(VolumeIoFrame, EveryFormatPairKeepsTheAnatomy) {
+  const std::string dir = test::temp_dir();
+  Geometry flipped = Geometry::with_spacing(0.5, 0.75, 1.25, {10, 20, 30});
+  flipped.directions[0][0] = -0.5;
+  flipped.directions[2][2] = -1.25;
+  const struct {
+    const char* name;
+    Geometry g;
+    bool inr;  // INR holds axis-aligned volumes only
+  } geoms[] = {{"oblique", oblique_geometry(), false}, {"flipped", flipped, true},
+               {"anisotropic", aligned_geometry(), true}};
+  const char* exts[] = {".nrrd", ".nhdr", ".mha", ".mhd", ".nii", ".nii.gz", ".inr", ".vdb"};
+  for (const auto& geo : geoms) {
+    Volume v(VoxelType::i16, kDims, geo.g);
+    for (std::size_t i = 0; i < v.count(); ++i) v.set(i, double(i) + 1);  // every voxel distinct
+    for (const char* a : exts) {
+      for (const char* b : exts) {
+        if (!geo.inr && (std::string(a) == ".inr" || std::string(b) == ".inr")) continue;
+        SCOPED_TRACE(std::string(geo.name) + " " + a + " -> " + b);
+        write_volume(v, dir + "/a" + a);
+        write_volume(read_volume(dir + "/a" + a), dir + "/b" + b);
+        const Volume r = read_volume(dir + "/b" + b);
+        ASSERT_EQ(r.count(), v.count());
+        for (std::size_t k = 0; k < kDims.nz; ++k)
+          for (std::size_t j = 0; j < kDims.ny; ++j)
+            for (std::size_t i = 0; i < kDims.nx; ++i) {
+              const Vec3 q = v.geometry().world_to_index(r.geometry().index_to_world(Vec3(double(i), double(j), double(k))));
+              // NIfTI stores float32: 1e-6 relative of coordinates near 30.
+              const long si = std::lround(q.x), sj = std::lround(q.y), sk = std::lround(q.z);
+              ASSERT_NEAR(q.x, double(si), 1e-4);
+              ASSERT_NEAR(q.y, double(sj), 1e-4);
+              ASSERT_NEAR(q.z, double(sk), 1e-4);
+              ASSERT_TRUE(si >= 0 && sj >= 0 && sk >= 0 && std::size_t(si) < kDims.nx && std::size_t(sj) < kDims.ny &&
+                          std::size_t(sk) < kDims.nz)
+                  << "voxel " << i << " " << j << " " << k << " maps outside the source: " << q.x << " " << q.y << " "
+                  << q.z;
+              ASSERT_EQ(r.get(i, j, k), v.get(std::size_t(si), std::size_t(sj), std::size_t(sk)));
+            }
+      }
+    }
+  }
 }
 
 // ---------------------------------------------------------------------------

@@ -189,5 +189,53 @@ TEST(Volume, TypeNames) {
   EXPECT_THROW(parse_voxel_type("complex"), UsageError);
 }
 
+TEST(Volume, WorldSignsMapRasAndLpsBothWays) {
+  Geometry g = Geometry::with_spacing(0.5, 2, 3, {10, 0, 30});
+  g.directions[0][1] = 0.25;
+  const Geometry r = with_world_signs(g, {-1, -1, 1});
+  EXPECT_EQ(r.origin.x, -10.0);
+  EXPECT_EQ(r.directions[0][0], -0.5);
+  EXPECT_EQ(r.directions[0][1], -0.25);
+  EXPECT_EQ(r.directions[1][1], -2.0);
+  EXPECT_EQ(r.directions[2][2], 3.0);
+  // A negated 0 is +0 (so headers never say "-0").
+  EXPECT_FALSE(std::signbit(r.origin.y));
+  EXPECT_FALSE(std::signbit(r.directions[1][0]));
+  // The same voxel is at the mirrored point; twice is the identity.
+  const Vec3 p = g.index_to_world({1, 2, 3}), q = r.index_to_world({1, 2, 3});
+  EXPECT_EQ(q.x, ras_from_lps(p).x);
+  EXPECT_EQ(q.y, ras_from_lps(p).y);
+  EXPECT_EQ(q.z, p.z);
+  const Geometry back = with_world_signs(r, {-1, -1, 1});
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(back.origin[i], g.origin[i]);
+    for (int j = 0; j < 3; ++j) EXPECT_EQ(back.directions[i][j], g.directions[i][j]);
+  }
+}
+
+TEST(Volume, PositiveStepsKeepWorldPositions) {
+  Geometry g = Geometry::with_spacing(1, 2, 3, {5, 6, 7});
+  g.directions[1][1] = -2;
+  Volume v(VoxelType::i16, Dims{3, 4, 2}, g);
+  for (std::size_t i = 0; i < v.count(); ++i) v.set(i, double(i));
+  const Volume p = with_positive_steps(v, "t");
+  EXPECT_EQ(p.geometry().directions[1][1], 2.0);
+  EXPECT_EQ(p.geometry().origin.y, 6.0 - 2 * 3);
+  for (std::size_t k = 0; k < 2; ++k)
+    for (std::size_t j = 0; j < 4; ++j)
+      for (std::size_t i = 0; i < 3; ++i) {
+        const Vec3 w = v.geometry().index_to_world(Vec3(double(i), double(j), double(k)));
+        const Vec3 q = p.geometry().world_to_index(w);
+        ASSERT_EQ(p.get(std::size_t(std::lround(q.x)), std::size_t(std::lround(q.y)), std::size_t(std::lround(q.z))),
+                  v.get(i, j, k));
+      }
+  // Nothing flipped: the same volume; oblique: refused.
+  const Volume same = with_positive_steps(Volume(VoxelType::u8, Dims{2, 2, 2}), "t");
+  EXPECT_EQ(same.geometry().directions[0][0], 1.0);
+  Geometry ob = Geometry::with_spacing(1, 1, 1);
+  ob.directions[0][1] = 0.5;
+  EXPECT_THROW(with_positive_steps(Volume(VoxelType::u8, Dims{2, 2, 2}, ob), "t"), InputError);
+}
+
 }  // namespace
 }  // namespace pm

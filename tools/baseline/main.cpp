@@ -11,6 +11,8 @@
 #include "pm/io/volume_io.h"
 #include "pm/baseline/baseline.h"
 #include "pm/mesh/tetlabel.h"
+#include "pm/cli/frame_option.h"
+#include "pm/io/output_path.h"
 
 namespace {
 
@@ -58,7 +60,7 @@ int main(int argc, char** argv) {
                       "the domain's corners are not on)")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "below", "above"}));
-  tool.app.add_option("-o,--output", out, "Mesh to write (.ply .obj .off .stl)")->required();
+  tool.app.add_option("-o,--output", out, "Mesh to write (.ply .vtp .vtk .mesh .obj .off .stl), world units")->required();
   tool.app.add_option("--vertices", vertices, "cgal modes: search the facet size so the mesh has about N vertices");
   tool.app.add_option("--size", size, "cgal modes: Mesh_3 facet_size (and edge_size), world units");
   tool.app.add_option("--distance", distance, "cgal modes: Mesh_3 facet_distance, world units (default size/4)");
@@ -68,7 +70,10 @@ int main(int argc, char** argv) {
   tool.app.add_option("--max-runs", max_runs, "cgal modes with --vertices: most Mesh_3 runs in the size search")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  pm::WorldFrame frame = pm::WorldFrame::lps;
+  pm::add_frame_option(tool.app, frame);
   return tool.run(argc, argv, [&] {
+    pm::check_output_path(out, pm::OutputKind::mesh, "--output");
     auto& st = pm::stats();
     st["inputs"] = {fo.input};
     st["parameters"] = {{"mode", mode}};
@@ -76,12 +81,6 @@ int main(int argc, char** argv) {
       throw pm::UsageError(mode + ": give exactly one of --vertices N or --size S (world units)");
     if (mode == "mc" && (vertices > 0 || size > 0))
       throw pm::UsageError("mc: --vertices and --size are for the cgal modes; marching cubes uses the voxel grid");
-    auto ends_with = [&](const char* e) {
-      const std::string x(e);
-      return out.size() > x.size() && out.compare(out.size() - x.size(), x.size(), x) == 0;
-    };
-    if (!ends_with(".ply") && !ends_with(".obj") && !ends_with(".off") && !ends_with(".stl"))
-      throw pm::UsageError("output " + pm::quote(out) + ": expected a .ply, .obj, .off or .stl file");
     pm::Mesh m;
     pm::Stopwatch clock;
     pm::CgalMeshParams p;
@@ -128,7 +127,7 @@ int main(int argc, char** argv) {
       }
     }
     const pm::MeshTopology t = pm::mesh_topology(m);
-    pm::write_mesh(m, out);
+    pm::write_mesh(m, out, {true, frame});
     pm::info(std::to_string(t.vertices) + " vertices, " + std::to_string(t.faces) + " triangles, " +
              std::to_string(t.components) + " component(s), genus " + std::to_string(t.genus));
     st["outputs"] = {out};

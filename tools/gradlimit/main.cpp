@@ -8,6 +8,7 @@
 #include "pm/cli/run_tool.h"
 #include "pm/io/volume_io.h"
 #include "pm/volume/gradlimit.h"
+#include "pm/io/output_path.h"
 
 int main(int argc, char** argv) {
   pm::Tool tool("gradlimit",
@@ -31,10 +32,8 @@ int main(int argc, char** argv) {
                                     "only ~30% and gzip takes seconds on 256^3; off by default)");
 
   return tool.run(argc, argv, [&] {
+    pm::check_output_path(out, pm::OutputKind::volume, "output");
     auto& st = pm::stats();
-    if (!pm::is_volume_path(out))
-      throw pm::UsageError("output " + pm::quote(out) + ": unknown volume extension; expected .nrrd .nhdr .vdb .mha "
-                           ".mhd .nii .nii.gz .inr .inr.gz");
     if (method == "propagate")
       p.method = pm::GradLimitMethod::propagate;
     else if (method == "upwind")

@@ -9,6 +9,8 @@
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
 #include "pm/volume/mcinit.h"
+#include "pm/cli/frame_option.h"
+#include "pm/io/output_path.h"
 
 int main(int argc, char** argv) {
   pm::Tool tool("mcinit",
@@ -24,7 +26,7 @@ int main(int argc, char** argv) {
   auto* iso = tool.app.add_option("--iso", p.iso, "Isovalue, in voxel value units (F < iso inside)");
   tool.app.add_option("input", in, "Input volume (grey values, distance field, mask; label map with --junctions)")
       ->required();
-  tool.app.add_option("output", out, "Seed points, PLY (vertices, normals, scalars)")->required();
+  tool.app.add_option("output", out, "Seed points (.ply .vtp .vtk: vertices, normals, scalars), world units")->required();
   pm::add_kernel_option(tool.app, kernel);
   tool.app.add_option("--decimate", p.decimate, "Keep about one seed per K^3 cells (per component / label set)")
       ->capture_default_str();
@@ -32,10 +34,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   tool.app.add_flag("--junctions", junctions, "Label map: seeds on material boundaries, triple lines, quadruple points");
 
+  pm::WorldFrame frame = pm::WorldFrame::lps;
+  pm::add_frame_option(tool.app, frame);
   return tool.run(argc, argv, [&] {
+    pm::check_output_path(out, pm::OutputKind::points, "output");
     auto& st = pm::stats();
-    if (out.size() < 4 || out.substr(out.size() - 4) != ".ply")
-      throw pm::UsageError("output " + pm::quote(out) + ": expected a .ply file");
     if (p.decimate < 1) throw pm::UsageError("--decimate " + std::to_string(p.decimate) + "; expected >= 1");
     p.field = pm::kernel_params(kernel);
     if (junctions == (iso->count() > 0))
@@ -64,7 +67,7 @@ int main(int argc, char** argv) {
     } catch (const pm::InputError& e) {
       throw pm::InputError(pm::quote(in) + ": " + e.what());
     }
-    pm::write_mesh(seeds, out);
+    pm::write_mesh(seeds, out, {true, frame});
     st["outputs"] = {out};
   });
 }

@@ -12,15 +12,8 @@
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
 #include "pm/volume/medialaxis.h"
-
-namespace {
-// A number as a user typed it (no trailing zeros), for messages.
-std::string num(double v) {
-  std::ostringstream s;
-  s << v;
-  return s.str();
-}
-}  // namespace
+#include "pm/cli/frame_option.h"
+#include "pm/io/output_path.h"
 
 int main(int argc, char** argv) {
   pm::Tool tool("medialaxis",
@@ -33,7 +26,7 @@ int main(int argc, char** argv) {
   double iso = std::nan("");
   pm::MedialAxisParams p;
   tool.app.add_option("input", in, "Signed distance volume (negative inside)")->required();
-  tool.app.add_option("output", out, "Medial-axis points (.ply)")->required();
+  tool.app.add_option("output", out, "Medial-axis points (.ply .vtp .vtk), world units")->required();
   tool.app.add_option("--cos-alpha", p.cos_alpha, "cos of the smallest turn of the characteristic that marks the "
                                                   "medial axis, in (-1, 1); dimensionless")->capture_default_str();
   tool.app.add_option("--volume", volume, "Also write a uint8 volume with 1 at the node nearest each point");
@@ -50,21 +43,21 @@ int main(int argc, char** argv) {
   tool.app.add_option("--foot-iterations", p.foot_iterations, "Tangent-plane refinements of each foot point")
       ->capture_default_str();
 
+  pm::WorldFrame frame = pm::WorldFrame::lps;
+  pm::add_frame_option(tool.app, frame);
   return tool.run(argc, argv, [&] {
+    pm::check_output_path(out, pm::OutputKind::points, "output");
+    pm::check_output_path(volume, pm::OutputKind::volume, "--volume");
+    pm::check_output_path(sdf_out, pm::OutputKind::volume, "--sdf-out");
     auto& st = pm::stats();
     st["inputs"] = {in};
     p.inside = side != "outside";
     p.outside = side != "inside";
     st["parameters"] = {{"cos_alpha", p.cos_alpha}, {"side", side}, {"foot_iterations", p.foot_iterations}};
-    if (pm::file_extension(out) != ".ply") throw pm::UsageError("output " + pm::quote(out) + ": expected a .ply file");
     if (!(p.cos_alpha > -1 && p.cos_alpha < 1))
-      throw pm::UsageError("--cos-alpha " + num(p.cos_alpha) + "; expected a value in (-1, 1)");
+      throw pm::UsageError("--cos-alpha " + pm::format_number(p.cos_alpha) + "; expected a value in (-1, 1)");
     if (p.foot_iterations < 0)
       throw pm::UsageError("--foot-iterations " + std::to_string(p.foot_iterations) + "; expected >= 0");
-    if (!volume.empty() && !pm::is_volume_path(volume))
-      throw pm::UsageError("--volume " + pm::quote(volume) + ": unknown volume extension");
-    if (!sdf_out.empty() && !pm::is_volume_path(sdf_out))
-      throw pm::UsageError("--sdf-out " + pm::quote(sdf_out) + ": unknown volume extension");
     if (!sdf_out.empty() && std::isnan(iso)) throw pm::UsageError("--sdf-out needs --iso");
     pm::Volume sdf = pm::read_volume(in);
     if (!std::isnan(iso)) {
@@ -97,7 +90,7 @@ int main(int argc, char** argv) {
     pm::info(std::to_string(r.points.vertices.size()) + " medial-axis points (" + std::to_string(r.inner) +
              " inner, " + std::to_string(r.outer) + " outer); " + std::to_string(r.nodes_refined) +
              " foot points refined on the field");
-    pm::write_mesh(r.points, out);
+    pm::write_mesh(r.points, out, {true, frame});
     if (!volume.empty()) pm::write_volume(pm::mark_points(sdf, r.points.vertices), volume);
     if (!sdf_out.empty()) {
       pm::VolumeWriteParams wp;

@@ -15,6 +15,7 @@
 #include "pm/mesh/coverage.h"
 #include "pm/mesh/meshstats.h"
 #include "pm/mesh/meshstats_materials.h"
+#include "pm/io/output_path.h"
 
 namespace {
 void print_table(const pm::MeshQuality& q) {
@@ -90,6 +91,7 @@ int main(int argc, char** argv) {
                       "With --seeds: components with fewer seeds than this (smaller than a few voxels) only warn")
       ->capture_default_str();
   return tool.run(argc, argv, [&] {
+    pm::check_output_path(out, pm::OutputKind::json, "--output");
     auto& st = pm::stats();
     st["inputs"] = {mesh_path};
     auto write_report = [&](const pm::Json& j) {

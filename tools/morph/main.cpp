@@ -9,6 +9,7 @@
 #include "pm/io/volume_io.h"
 #include "pm/volume/labels.h"
 #include "pm/volume/morphology.h"
+#include "pm/io/output_path.h"
 
 namespace {
 
@@ -74,10 +75,8 @@ int main(int argc, char** argv) {
   tool.app.add_flag("--grey", grey, "Grey-value input: only --downsample (block mean) is allowed");
 
   return tool.run(argc, argv, [&] {
+    pm::check_output_path(out, pm::OutputKind::volume, "output");
     auto& st = pm::stats();
-    if (!pm::is_volume_path(out))
-      throw pm::UsageError("output " + pm::quote(out) + ": unknown volume extension; expected .nrrd .nhdr .vdb .mha "
-                           ".mhd .nii .nii.gz .inr .inr.gz");
     if (!op.empty() && !ops.empty()) throw pm::UsageError("give either --op or --ops, not both");
     if (iterations < 1) throw pm::UsageError("--iterations " + std::to_string(iterations) + "; expected >= 1");
     if (p.downsample < 1)

@@ -16,6 +16,8 @@
 #include "pm/io/volume_io.h"
 #include "pm/volume/mcinit.h"
 #include "pm/sample/multiparticles.h"
+#include "pm/cli/frame_option.h"
+#include "pm/io/output_path.h"
 
 namespace {
 
@@ -89,15 +91,16 @@ int main(int argc, char** argv) {
                     "Keep surface particles of two interfaces sharing a material that come closer than h/4 (by "
                     "default such a pair becomes one particle on their triple junction, where the curve level "
                     "left a gap)");
-  tool.app.add_option("-o,--output", output, "Output point set (.ply)")->required();
+  tool.app.add_option("-o,--output", output, "Output point set (.ply .vtp .vtk), world units")->required();
 
+  pm::WorldFrame frame = pm::WorldFrame::lps;
+  pm::add_frame_option(tool.app, frame);
   return tool.run(argc, argv, [&] {
+    pm::check_output_path(output, pm::OutputKind::points, "--output");
     if (sizing_path.empty() && !spacing->count()) throw pm::UsageError("--spacing S (world units) or --sizing H is required");
     if (!sizing_path.empty() && spacing->count()) throw pm::UsageError("give --spacing or --sizing, not both");
     if (!seeds_path.empty() && !labels_path.empty()) throw pm::UsageError("give --seeds or --labels, not both");
     if (decimate < 1) throw pm::UsageError("--decimate must be >= 1, got " + std::to_string(decimate));
-    if (pm::file_extension(output) != ".ply")
-      throw pm::UsageError("output " + pm::quote(output) + ": expected a .ply file");
     p.energy = energy == "radial" ? pm::ParticleEnergy::radial : pm::ParticleEnergy::cotangent;
     p.surfaces = !no_surfaces;
     p.repair_junctions = !no_repair;
@@ -140,7 +143,7 @@ int main(int argc, char** argv) {
     record_stats(r);
     {
       pm::ScopedStage stage("write");
-      pm::write_mesh(pm::multi_particles_mesh(r), output);
+      pm::write_mesh(pm::multi_particles_mesh(r), output, {true, frame});
     }
     st["outputs"] = {output};
     const char* names[3] = {"points", "curves", "surfaces"};

@@ -16,6 +16,8 @@
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
 #include "pm/sample/particles.h"
+#include "pm/cli/frame_option.h"
+#include "pm/io/output_path.h"
 
 namespace {
 
@@ -137,15 +139,16 @@ int main(int argc, char** argv) {
   tool.app.add_option("--coarse-start", p.coarse_start, "Coarsest spacing, world units (0 = 4 voxel widths / "
                                                         "field resolutions)")
       ->capture_default_str();
-  tool.app.add_option("-o,--output", output, "Output point set (.ply)")->required();
+  tool.app.add_option("-o,--output", output, "Output point set (.ply .vtp .vtk), world units")->required();
 
+  pm::WorldFrame frame = pm::WorldFrame::lps;
+  pm::add_frame_option(tool.app, frame);
   return tool.run(argc, argv, [&] {
+    pm::check_output_path(output, pm::OutputKind::points, "--output");
     if (implicit.empty() == input.empty()) throw pm::UsageError("give exactly one of --implicit SPEC or -i VOLUME");
     if (sizing_path.empty() && !spacing->count()) throw pm::UsageError("--spacing S (world units) is required");
     if (!sizing_path.empty() && spacing->count()) throw pm::UsageError("give --spacing or --sizing, not both");
     if (!sizing_path.empty() && density->count()) throw pm::UsageError("--density does not apply with --sizing");
-    if (pm::file_extension(output) != ".ply")
-      throw pm::UsageError("output " + pm::quote(output) + ": expected a .ply file");
     p.energy = energy == "radial" ? pm::ParticleEnergy::radial : pm::ParticleEnergy::cotangent;
     p.coarse_to_fine = ctf->count() ? coarse : !input.empty();
     if (!lattice->count()) p.init_lattice = !input.empty();
@@ -173,7 +176,7 @@ int main(int argc, char** argv) {
     record_stats(r);
     {
       pm::ScopedStage stage("write");
-      pm::write_mesh(to_mesh(r), output);
+      pm::write_mesh(to_mesh(r), output, {true, frame});
     }
     st["outputs"] = {output};
     if (!r.converged)

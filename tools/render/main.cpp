@@ -9,6 +9,7 @@
 #include "pm/io/mesh.h"
 #include "pm/io/png.h"
 #include "pm/render/render.h"
+#include "pm/io/output_path.h"
 
 int main(int argc, char** argv) {
   pm::Tool tool("render",
@@ -40,13 +41,12 @@ int main(int argc, char** argv) {
       ->capture_default_str();
 
   return tool.run(argc, argv, [&] {
+    pm::check_output_path(out, pm::OutputKind::png, "--output");
     char x = 0, extra = 0;
     if (std::sscanf(size.c_str(), "%d%c%d%c", &p.width, &x, &p.height, &extra) != 3 || (x != 'x' && x != 'X'))
       throw pm::UsageError("--size " + pm::quote(size) + ": expected WxH, e.g. 800x600");
     if (p.width < 1 || p.width > 8192 || p.height < 1 || p.height > 8192)
       throw pm::UsageError("--size " + size + ": expected each side in 1..8192 pixels");
-    if (pm::file_extension(out) != ".png")
-      throw pm::UsageError(pm::quote(out) + ": unknown image extension; expected .png");
 
     const pm::Mesh m = pm::read_mesh(in);
     if (m.vertices.empty()) throw pm::InputError(pm::quote(in) + ": no vertices; expected a point set or mesh");

@@ -11,15 +11,7 @@
 #include "pm/io/volume_io.h"
 #include "pm/volume/medialaxis.h"
 #include "pm/volume/sizingfield.h"
-
-namespace {
-// A number as a user typed it (no trailing zeros), for messages.
-std::string num(double v) {
-  std::ostringstream s;
-  s << v;
-  return s.str();
-}
-}  // namespace
+#include "pm/io/output_path.h"
 
 int main(int argc, char** argv) {
   pm::Tool tool("sizingfield",
@@ -51,12 +43,14 @@ int main(int argc, char** argv) {
   tool.app.add_option("--lfs", lfs_out, "Also write the local feature size volume (world units, 0 = unknown)");
 
   return tool.run(argc, argv, [&] {
+    pm::check_output_path(out, pm::OutputKind::volume, "--output");
+    pm::check_output_path(lfs_out, pm::OutputKind::volume, "--lfs");
     auto& st = pm::stats();
     p.contract = !no_contract;
-    if (!(p.eps > 0)) throw pm::UsageError("--eps " + num(p.eps) + "; expected > 0");
-    if (!(p.hmin >= 0)) throw pm::UsageError("--hmin " + num(p.hmin) + "; expected >= 0 (world units)");
-    if (!(p.band > 0)) throw pm::UsageError("--band " + num(p.band) + "; expected > 0 voxels");
-    if (!(p.contraction >= 1)) throw pm::UsageError("--contraction " + num(p.contraction) + "; expected >= 1");
+    if (!(p.eps > 0)) throw pm::UsageError("--eps " + pm::format_number(p.eps) + "; expected > 0");
+    if (!(p.hmin >= 0)) throw pm::UsageError("--hmin " + pm::format_number(p.hmin) + "; expected >= 0 (world units)");
+    if (!(p.band > 0)) throw pm::UsageError("--band " + pm::format_number(p.band) + "; expected > 0 voxels");
+    if (!(p.contraction >= 1)) throw pm::UsageError("--contraction " + pm::format_number(p.contraction) + "; expected >= 1");
     p.at_foot_point = !at_node;
     st["inputs"] = {{"sdf", sdfs}, {"ma", mas}};
     st["parameters"] = {{"eps", p.eps},           {"hmin", p.hmin},  {"band", p.band},
@@ -64,9 +58,6 @@ int main(int argc, char** argv) {
     if (sdfs.size() != mas.size())
       throw pm::UsageError("got " + std::to_string(sdfs.size()) + " --sdf and " + std::to_string(mas.size()) +
                            " --ma; expected one medial axis per distance volume");
-    if (!pm::is_volume_path(out)) throw pm::UsageError("output " + pm::quote(out) + ": unknown volume extension");
-    if (!lfs_out.empty() && !pm::is_volume_path(lfs_out))
-      throw pm::UsageError("--lfs " + pm::quote(lfs_out) + ": unknown volume extension");
     std::vector<pm::Volume> volumes;
     std::vector<std::vector<pm::Vec3>> axes;
     for (std::size_t s = 0; s < sdfs.size(); ++s) {

@@ -13,6 +13,9 @@
 #include "pm/mesh/pipeline.h"
 #include "pm/mesh/tetlabel.h"
 #include "pm/mesh/tetlabel_materials.h"
+#include "pm/cli/frame_option.h"
+#include "pm/io/output_path.h"
+#include "pm/io/tet_mesh.h"
 
 namespace {
 
@@ -41,7 +44,7 @@ std::string surface_path(const std::string& spec, int label) {
 // Multi-material mode (--materials): interfaces, per-material surfaces, tets.
 void run_materials(pm::Mesh pts, const std::string& points, const pm::MaterialOptions& mo,
                    const std::string& outside_opt, bool repair, int improve, const std::string& out,
-                   const std::string& surfaces, const std::string& tets) {
+                   const std::string& surfaces, const std::string& tets, pm::WorldFrame frame) {
   auto& st = pm::stats();
   const pm::MaterialSet ms = pm::load_materials(mo);
   pm::MaterialMeshParams mp;
@@ -68,7 +71,7 @@ void run_materials(pm::Mesh pts, const std::string& points, const pm::MaterialOp
   const pm::TetMesh& tm = r.tets;
   const pm::MeshTopology& it = r.interface_topology;
   const std::size_t buried = r.buried;
-  pm::write_mesh(mm.interfaces, out);
+  pm::write_mesh(mm.interfaces, out, {true, frame});
   pm::Json outputs = {out};
   pm::Json per = pm::Json::object();
   for (const auto& [l, m] : mm.surfaces) {
@@ -78,12 +81,12 @@ void run_materials(pm::Mesh pts, const std::string& points, const pm::MaterialOp
                               {"closed_manifold", t.closed_manifold()}};
     if (!surfaces.empty()) {
       const std::string path = surface_path(surfaces, l);
-      pm::write_mesh(m, path);
+      pm::write_mesh(m, path, {true, frame});
       outputs.push_back(path);
     }
   }
   if (!tets.empty()) {
-    pm::write_medit(tm, mp.outside_label, tets);
+    pm::write_tet_mesh(pm::labelled_tets(tm, mp.outside_label), tets, {frame});
     outputs.push_back(tets);
   }
   pm::Json pairs = pm::Json::array();
@@ -107,8 +110,8 @@ int main(int argc, char** argv) {
   pm::Tool tool("tetlabel",
                 "Triangulate surface particles: Delaunay-tetrahedralise them (TetGen), label each tetrahedron "
                 "inside (F < iso) or outside by the field at its circumcentre, and write the faces between "
-                "inside and outside as a closed, outward-oriented triangle mesh (PLY, OBJ, OFF, STL by "
-                "extension). With --materials (Chapter 6): label each tetrahedron by the material with the "
+                "inside and outside as a closed, outward-oriented triangle mesh (PLY, VTK .vtp/.vtk, MEDIT, OBJ, OFF, "
+                "STL by extension). With --materials (Chapter 6): label each tetrahedron by the material with the "
                 "largest indicator at its circumcentre and write the interfaces between materials as one PLY "
                 "with integer face properties label_a < label_b (normal from a into b) and pair, plus each "
                 "material's closed surface (--material-surfaces), sharing its triangles with its neighbours. "
@@ -123,7 +126,7 @@ int main(int argc, char** argv) {
   pm::FieldOptions fo;
   tool.app.add_option("points", points, "Particles (PLY, OFF, OBJ, STL vertices), world units")->required();
   pm::add_field_options(tool.app, fo);
-  tool.app.add_option("-o,--output", out, "Surface mesh to write (.ply .obj .off .stl)")->required();
+  tool.app.add_option("-o,--output", out, "Surface mesh to write (.ply .vtp .vtk .mesh .obj .off .stl; label_a/label_b kept by .ply .vtp .vtk and as MEDIT triangle references)")->required();
   tool.app.add_option("--inside", inside,
                       "Which side is the material: below (F < iso, distance fields), above (F > iso, masks, CT "
                       "intensities) or auto (the side the domain's corners are not on)")
@@ -140,7 +143,7 @@ int main(int argc, char** argv) {
                       "warning, when the Delaunay surface is not a closed manifold")
       ->capture_default_str()
       ->check(CLI::Range(0, 100));
-  tool.app.add_option("--tets", tets, "Also write the inside tetrahedra as a MEDIT .mesh");
+  tool.app.add_option("--tets", tets, "Also write the inside tetrahedra, by extension: .mesh (MEDIT, material references and boundary triangles), .vtu or .vtk (VTK, cell array material), .msh (Gmsh 4.1, one physical group per material)");
   pm::add_material_options(tool.app, mo, false, "")
       ->excludes("--input")
       ->excludes("--implicit");
@@ -151,7 +154,13 @@ int main(int argc, char** argv) {
   tool.app.add_option("--material-surfaces", surfaces,
                       "With --materials: write each material's closed surface (all but the outside label) as "
                       "DIR/material_<label>.ply, or to a pattern with %d, e.g. \"out/m%d.off\"");
+  pm::WorldFrame frame = pm::WorldFrame::lps;
+  pm::add_frame_option(tool.app, frame);
   return tool.run(argc, argv, [&] {
+    pm::check_output_path(out, pm::OutputKind::mesh, "--output");
+    pm::check_output_path(tets, pm::OutputKind::tet_mesh, "--tets");
+    if (surfaces.find("%d") != std::string::npos)
+      pm::check_output_path(surface_path(surfaces, 0), pm::OutputKind::mesh, "--material-surfaces");
     auto& st = pm::stats();
     if (!mo.spec.empty()) {
       st["inputs"] = {points, mo.spec};
@@ -162,7 +171,7 @@ int main(int argc, char** argv) {
         throw pm::InputError(pm::quote(points) + ": " + std::to_string(pts.vertices.size()) +
                              " points; expected at least 4 particles");
       if (improve > 0 && !repair) throw pm::UsageError("--improve needs manifold surfaces: drop --no-repair");
-      run_materials(pts, points, mo, outside, repair, improve, out, surfaces, tets);
+      run_materials(pts, points, mo, outside, repair, improve, out, surfaces, tets, frame);
       return;
     }
     if (!surfaces.empty() || outside != "auto")
@@ -190,8 +199,8 @@ int main(int argc, char** argv) {
     const pm::TetMesh& tm = r.tets;
     const pm::TetLabelStats& ls = r.label_stats;
     const std::size_t relabelled = r.relabelled, buried = r.buried;
-    pm::write_mesh(surf, out);
-    if (!tets.empty()) pm::write_medit(tm, 0, tets);
+    pm::write_mesh(surf, out, {true, frame});
+    if (!tets.empty()) pm::write_tet_mesh(pm::labelled_tets(tm, 0), tets, {frame});
     pm::info(std::to_string(t.vertices) + " vertices, " + std::to_string(t.faces) + " triangles, " +
              std::to_string(t.components) + " component(s), genus " + std::to_string(t.genus));
     st["outputs"] = tets.empty() ? pm::Json{out} : pm::Json{out, tets};

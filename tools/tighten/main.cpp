@@ -6,6 +6,7 @@
 #include "pm/cli/run_tool.h"
 #include "pm/io/volume_io.h"
 #include "pm/volume/tighten.h"
+#include "pm/io/output_path.h"
 
 int main(int argc, char** argv) {
   pm::Tool tool("tighten",
@@ -40,12 +41,12 @@ int main(int argc, char** argv) {
                                     "~10% and gzip takes seconds on 256^3; off by default)");
 
   return tool.run(argc, argv, [&] {
+    pm::check_output_path(out, pm::OutputKind::volume, "output");
     auto& st = pm::stats();
     st["inputs"] = {in};
     st["parameters"] = {{"radius", p.radius}, {"upsample", p.upsample}, {"iterations", p.max_iterations},
                         {"tolerance", p.tolerance}, {"reinit", p.reinit_every}, {"positive_inside", p.positive_inside},
                         {"gzip", gzip}};
-    if (!pm::is_volume_path(out)) throw pm::UsageError("output " + pm::quote(out) + ": unknown volume extension");
     pm::VolumeWriteParams wp;
     wp.compress = gzip;
     if (per_label) {

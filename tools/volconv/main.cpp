@@ -14,6 +14,7 @@
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
 #include "pm/volume/labels.h"
+#include "pm/io/output_path.h"
 
 namespace {
 
@@ -31,6 +32,12 @@ pm::Json volume_info(const pm::Volume& v, const std::string& path) {
     dirs.push_back({c.x, c.y, c.z});
   }
   j["space_directions"] = dirs;
+  // libcore's world frame (pm/base/volume.h) and the frame the file was in.
+  const pm::FrameSource& f = v.frame_source();
+  j["frame"] = "LPS";
+  j["source_format"] = f.format;
+  j["source_space"] = f.space;
+  if (!f.note.empty()) j["frame_note"] = f.note;
   const pm::Box b = v.world_bounds();
   j["world_bounds"] = {{b.lo.x, b.lo.y, b.lo.z}, {b.hi.x, b.hi.y, b.hi.z}};
   const pm::ValueRange r = pm::value_range(v);
@@ -57,7 +64,8 @@ int main(int argc, char** argv) {
   pm::Tool tool("volconv",
                 "Convert volumes between NRRD (.nrrd/.nhdr), VDB (.vdb), MetaImage (.mha/.mhd), NIfTI "
                 "(.nii/.nii.gz) and INR (.inr/.inr.gz) by extension, keeping geometry (origin, spacing, "
-                "directions; world units). Also: --info prints the header as JSON; --sdf turns a closed mesh "
+                "directions; world units) and anatomy: every file is read into the LPS world frame (NIfTI's RAS "
+                "and the NRRD spaces converted) and written out of it. Also: --info prints the header as JSON; --sdf turns a closed mesh "
                 "(.off/.obj/.ply/.stl) into a signed distance volume (negative inside, world units); --labels "
                 "and --merge make masks and relabel label maps.",
                 "volconv brain.nii.gz brain.nrrd && volconv bunny.off bunny.nrrd --sdf --voxel 0.002");
@@ -67,8 +75,9 @@ int main(int argc, char** argv) {
   pm::MeshSdfParams sp;
   tool.app.add_option("input", in, "Input volume, or mesh with --sdf")->required();
   tool.app.add_option("output", out, "Output volume (format by extension)");
-  tool.app.add_flag("--info", info, "Print the input's header as JSON on stdout (dims, spacing, origin, type, "
-                                    "min/max, label counts for integer volumes)");
+  tool.app.add_flag("--info", info, "Print the input's header as JSON on stdout (dims, spacing, origin and "
+                                    "directions in LPS world units, the file's own frame, type, min/max, label "
+                                    "counts for integer volumes)");
   tool.app.add_flag("--sdf", sdf, "Input is a closed triangle mesh: write its signed distance volume");
   tool.app.add_option("--voxel", sp.voxel, "With --sdf: voxel size, world units (mesh units)");
   tool.app.add_option("--band", sp.band, "With --sdf: narrow band half-width in voxels; 0 = exact distance in the "
@@ -119,9 +128,7 @@ int main(int argc, char** argv) {
       return;
     }
     if (out.empty()) throw pm::UsageError("an output file is required (or --info)");
-    if (!pm::is_volume_path(out))
-      throw pm::UsageError("output " + pm::quote(out) +
-                           ": unknown volume extension; expected .nrrd .nhdr .vdb .mha .mhd .nii .nii.gz .inr .inr.gz");
+    pm::check_output_path(out, pm::OutputKind::volume, "output");
     pm::Volume v;
     if (argmax) {
       const pm::MaterialSet ms = pm::load_materials(in, pm::KernelType::catmull_rom);

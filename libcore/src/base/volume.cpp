@@ -63,6 +63,16 @@ bool Geometry::axis_aligned() const {
   return true;
 }
 
+Geometry with_world_signs(const Geometry& g, const Vec3& s) {
+  // + 0.0 turns the -0 of a negated 0 into 0 (headers then read "0", not "-0").
+  Geometry r = g;
+  for (int row = 0; row < 3; ++row) {
+    r.origin[row] = s[row] * g.origin[row] + 0.0;
+    for (int c = 0; c < 3; ++c) r.directions[row][c] = s[row] * g.directions[row][c] + 0.0;
+  }
+  return r;
+}
+
 Geometry Geometry::with_spacing(double sx, double sy, double sz, Vec3 origin) {
   Geometry g;
   g.origin = origin;
@@ -247,6 +257,40 @@ Volume padded(const Volume& v, std::size_t n, double value) {
   for (std::size_t k = 0; k < d.nz; ++k)
     for (std::size_t j = 0; j < d.ny; ++j)
       std::memcpy(dst + out.index(n, j + n, k + n) * bytes, src + v.index(0, j, k) * bytes, d.nx * bytes);
+  return out;
+}
+
+}  // namespace pm
+
+namespace pm {
+
+Volume with_positive_steps(const Volume& v, const std::string& what) {
+  const Mat3& d = v.geometry().directions;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c)
+      if ((r != c && d[r][c] != 0.0) || (r == c && d[r][c] == 0.0))
+        throw InputError(what + ": the volume has oblique axes; expected axis-aligned directions (a diagonal matrix)");
+  const bool flip[3] = {d[0][0] < 0, d[1][1] < 0, d[2][2] < 0};
+  if (!flip[0] && !flip[1] && !flip[2]) return v;
+  const Dims& n = v.dims();
+  Geometry g = v.geometry();
+  for (int a = 0; a < 3; ++a) {
+    if (!flip[a]) continue;
+    g.origin[a] += d[a][a] * double(n[a] - 1);
+    g.directions[a][a] = -d[a][a];
+  }
+  Volume out(v.type(), n, g);
+  out.set_frame_source(v.frame_source());
+  const std::size_t vs = voxel_size(v.type());
+  const auto* in = static_cast<const unsigned char*>(v.raw());
+  auto* o = static_cast<unsigned char*>(out.raw());
+  for (std::size_t k = 0; k < n.nz; ++k)
+    for (std::size_t j = 0; j < n.ny; ++j)
+      for (std::size_t i = 0; i < n.nx; ++i) {
+        const std::size_t si = flip[0] ? n.nx - 1 - i : i, sj = flip[1] ? n.ny - 1 - j : j,
+                          sk = flip[2] ? n.nz - 1 - k : k;
+        std::memcpy(o + out.index(i, j, k) * vs, in + v.index(si, sj, sk) * vs, vs);
+      }
   return out;
 }
 

@@ -34,6 +34,7 @@ using ImageDomain = CGAL::Labeled_mesh_domain_3<K>;
 using FeatureDomain = CGAL::Mesh_domain_with_polyline_features_3<ImageDomain>;
 
 // Our volume as a CGAL image (node samples, voxel i at origin + i * spacing).
+// CGAL's images hold positive spacings only: callers pass with_positive_steps(v).
 template <class T>
 CGAL::Image_3 make_image(const Volume& v, WORD_KIND kind, SIGN sign, const std::vector<T>& data) {
   const Geometry& g = v.geometry();
@@ -122,8 +123,10 @@ struct SideOf {
 
 }  // namespace
 
-CgalMeshResult cgal_isosurface(const Volume& v, double iso, bool material_below, const CgalMeshParams& p) {
+CgalMeshResult cgal_isosurface(const Volume& input, double iso, bool material_below, const CgalMeshParams& p) {
   check_params(p);
+  // Flipped axes (a RAS NIfTI in LPS) reversed for CGAL; oblique ones are refused in make_image.
+  const Volume v = input.geometry().axis_aligned() ? with_positive_steps(input, "CGAL Mesh_3 baseline") : input;
   namespace params = CGAL::parameters;
   Stopwatch clock;
   const std::vector<float> data = v.to_float();
@@ -159,7 +162,8 @@ CgalMeshResult cgal_isosurface(const Volume& v, double iso, bool material_below,
   return res;
 }
 
-CgalMeshResult cgal_labels(const Volume& labels, const CgalMeshParams& p) {
+CgalMeshResult cgal_labels(const Volume& input, const CgalMeshParams& p) {
+  const Volume labels = input.geometry().axis_aligned() ? with_positive_steps(input, "CGAL Mesh_3 baseline") : input;
   check_params(p);
   namespace params = CGAL::parameters;
   if (!is_integer(labels.type()))

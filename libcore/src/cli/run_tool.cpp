@@ -16,6 +16,7 @@
 #include "pm/base/log.h"
 #include "pm/base/stats.h"
 #include "pm/base/test_hold.h"
+#include "pm/io/output_path.h"
 
 namespace pm {
 
@@ -86,6 +87,12 @@ int Tool::run(int argc, char** argv, const std::function<void()>& body) {
   } catch (const CLI::ParseError& e) {
     // One line, like every other error: the message, then where to look.
     std::cerr << name_ << ": usage error: " << e.what() << " (run " << name_ << " --help for the options)\n";
+    return kExitUsage;
+  }
+  try {
+    check_output_path(flags.stats_path, OutputKind::json, "--stats");
+  } catch (const UsageError& e) {
+    std::cerr << name_ << ": usage error: " << e.what() << "\n";
     return kExitUsage;
   }
   set_verbosity(flags.quiet ? Verbosity::quiet : (flags.verbose ? Verbosity::verbose : Verbosity::normal));

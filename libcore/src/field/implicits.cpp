@@ -14,12 +14,6 @@ namespace pm {
 
 namespace {
 
-std::string num(double v) {
-  std::ostringstream s;
-  s << v;
-  return s.str();
-}
-
 Box centred_box(const Vec3& c, const Vec3& half) {
   Box b;
   b.extend(c - half);
@@ -59,7 +53,7 @@ class Sphere : public ScalarField {
   Box domain() const override { return with_margin(c_, Vec3(r_, r_, r_)); }
   double resolution() const override { return r_ / 50; }
   std::string describe() const override {
-    return "sphere r=" + num(r_) + " c=(" + num(c_.x) + "," + num(c_.y) + "," + num(c_.z) + ")";
+    return "sphere r=" + format_number(r_) + " c=(" + format_number(c_.x) + "," + format_number(c_.y) + "," + format_number(c_.z) + ")";
   }
 
  private:
@@ -87,7 +81,7 @@ class Torus : public ScalarField {
   }
   Box domain() const override { return with_margin({}, Vec3(R_ + r_, R_ + r_, r_)); }
   double resolution() const override { return std::min(r_, R_ - r_) / 50; }
-  std::string describe() const override { return "torus R=" + num(R_) + " r=" + num(r_); }
+  std::string describe() const override { return "torus R=" + format_number(R_) + " r=" + format_number(r_); }
 
  private:
   double eval(const Vec3& x, Vec3& grad, Mat3& hess, bool want_hess) const {
@@ -152,7 +146,7 @@ class Tangle : public ScalarField {
     return with_margin({}, Vec3(h, h, h));
   }
   double resolution() const override { return s_ / 50; }
-  std::string describe() const override { return "tangle s=" + num(s_); }
+  std::string describe() const override { return "tangle s=" + format_number(s_); }
 
  private:
   double s_;
@@ -182,7 +176,7 @@ class RoundedBox : public ScalarField {
   Box domain() const override { return with_margin({}, half_); }
   double resolution() const override { return r_ / 50; }
   std::string describe() const override {
-    return "box a=" + num(half_.x) + " b=" + num(half_.y) + " c=" + num(half_.z) + " r=" + num(r_);
+    return "box a=" + format_number(half_.x) + " b=" + format_number(half_.y) + " c=" + format_number(half_.z) + " r=" + format_number(r_);
   }
 
  private:
@@ -231,7 +225,7 @@ class TwoSpheres : public ScalarField {
   }
   Box domain() const override { return with_margin({}, Vec3(d_ / 2 + r_, r_, r_)); }
   double resolution() const override { return r_ / 50; }
-  std::string describe() const override { return "twospheres r=" + num(r_) + " d=" + num(d_); }
+  std::string describe() const override { return "twospheres r=" + format_number(r_) + " d=" + format_number(d_); }
 
  private:
   Sphere a_, b_;
@@ -269,7 +263,7 @@ std::string usage_of(const ShapeSpec& s) {
   std::string u = s.name;
   u += "[:";
   for (std::size_t i = 0; i < s.params.size(); ++i)
-    u += (i ? "," : "") + std::string(s.params[i].name) + "=" + num(s.params[i].fallback);
+    u += (i ? "," : "") + std::string(s.params[i].name) + "=" + format_number(s.params[i].fallback);
   return u + "]";
 }
 
@@ -329,7 +323,7 @@ std::unique_ptr<ScalarField> make_implicit(const std::string& spec) {
         throw UsageError(where + key + "=" + quote(text) + " is not a number; expected " + key +
                          "=<finite number>");
       if (ps->positive && !(x > 0))
-        throw UsageError(where + key + " must be > 0, got " + num(x));
+        throw UsageError(where + key + " must be > 0, got " + format_number(x));
       v[key] = x;
     }
   }
@@ -337,16 +331,16 @@ std::unique_ptr<ScalarField> make_implicit(const std::string& spec) {
   if (name == "sphere") return std::make_unique<Sphere>(v["r"], Vec3(v["cx"], v["cy"], v["cz"]));
   if (name == "torus") {
     if (!(v["r"] < v["R"]))
-      throw UsageError(where + "tube radius r=" + num(v["r"]) + " must be < ring radius R=" +
-                       num(v["R"]));
+      throw UsageError(where + "tube radius r=" + format_number(v["r"]) + " must be < ring radius R=" +
+                       format_number(v["R"]));
     return std::make_unique<Torus>(v["R"], v["r"]);
   }
   if (name == "tangle") return std::make_unique<Tangle>(v["s"]);
   if (name == "box") {
     const double m = std::min({v["a"], v["b"], v["c"]});
     if (v["r"] > m)
-      throw UsageError(where + "rounding radius r=" + num(v["r"]) +
-                       " must be <= the smallest half-extent " + num(m));
+      throw UsageError(where + "rounding radius r=" + format_number(v["r"]) +
+                       " must be <= the smallest half-extent " + format_number(m));
     return std::make_unique<RoundedBox>(v["a"], v["b"], v["c"], v["r"]);
   }
   return std::make_unique<TwoSpheres>(v["r"], v["d"]);

@@ -13,7 +13,7 @@
 #include "pm/base/atomic_file.h"
 #include "pm/base/error.h"
 #include "pm/io/gzip.h"
-#include "pm/io/volume_io.h"
+#include "pm/io/volume_header.h"
 
 namespace fs = std::filesystem;
 
@@ -195,28 +195,33 @@ Volume read_inr(const std::string& path) {
     const std::size_t s = voxel_size(type);
     for (std::size_t i = 0; i < v.count(); ++i, p += s) std::reverse(p, p + s);
   }
+  v.set_frame_source({"INR", "none", "INR has no world frame: coordinates taken as LPS", false});
   return v;
 }
 
 void write_inr(const Volume& v, const std::string& path) {
   const std::string where = "write_inr: " + quote(path);
   if (v.empty()) throw InputError(where + ": the volume is empty");
-  const Geometry& g = v.geometry();
+  // A flipped axis (negative step, e.g. x and y of a RAS NIfTI in LPS) is
+  // stored reversed, so every voxel keeps its world position.
+  Volume positive;
+  try {
+    positive = with_positive_steps(v, where);
+  } catch (const InputError&) {
+    throw InputError(where +
+                     ": INRimage stores only per-axis spacing (VX VY VZ); the volume has oblique axes; "
+                     "expected axis-aligned directions (write NRRD, MHA, NIfTI or VDB instead)");
+  }
+  const Volume* src = &positive;
+  const Geometry& g = src->geometry();
   const Mat3& d = g.directions;
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c)
-      if ((r != c && d[r][c] != 0.0) || (r == c && !(d[r][c] > 0))) {
-        throw InputError(where +
-                         ": INRimage stores only positive per-axis spacing (VX VY VZ); the volume has oblique "
-                         "or flipped axes; expected axis-aligned directions (write NRRD, MHA, NIfTI or VDB instead)");
-      }
-  const VoxelType t = v.type();
+  const VoxelType t = src->type();
   const bool fl = !is_integer(t);
   const bool sgn = t == VoxelType::i8 || t == VoxelType::i16 || t == VoxelType::i32 || t == VoxelType::i64;
   std::ostringstream h;
   h << std::setprecision(17);
   h << kMagic << "\n";
-  h << "XDIM=" << v.dims().nx << "\nYDIM=" << v.dims().ny << "\nZDIM=" << v.dims().nz << "\nVDIM=1\n";
+  h << "XDIM=" << src->dims().nx << "\nYDIM=" << src->dims().ny << "\nZDIM=" << src->dims().nz << "\nVDIM=1\n";
   h << "TYPE=" << (fl ? "float" : (sgn ? "signed fixed" : "unsigned fixed")) << "\n";
   h << "PIXSIZE=" << voxel_size(t) * 8 << " bits\n";
   if (!fl) h << "SCALE=2**0\n";
@@ -231,7 +236,7 @@ void write_inr(const Volume& v, const std::string& path) {
 
   GzipWriter out(path, file_extension(path) == ".inr.gz", where);
   out.write(text.data(), text.size());
-  out.write(v.raw(), v.byte_size());
+  out.write(src->raw(), src->byte_size());
   out.close();
 }
 

@@ -16,7 +16,8 @@
 #include <sstream>
 
 #include "pm/base/error.h"
-#include "pm/io/mesh_formats.h"
+#include "pm/io/mesh_cgal.h"
+#include "pm/io/polygon_soup.h"
 
 namespace pm {
 namespace {
@@ -335,11 +336,12 @@ Mesh read_obj(const std::string& path) {
   return mesh_from_polygons(to_vec3(pts), polys, "read_obj", path);
 }
 
-void write_obj(const Mesh& m, const std::string& path) {
+void write_obj(const Mesh& m, const std::string& path, WorldFrame frame) {
   std::vector<Point> pts;
   Polygons polys;
   to_soup(m, pts, polys);
   std::ofstream os(path);
+  os << "# frame " << frame_name(frame) << " SPACE=" << frame_name(frame) << "\n";
   if (!os || !CGAL::IO::write_OBJ(os, pts, polys, CGAL::parameters::stream_precision(17)))
     throw IoError("write_obj: " + quote(path) + ": write failed");
   os.close();

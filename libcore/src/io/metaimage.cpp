@@ -11,12 +11,14 @@
 #include <iomanip>
 #include <map>
 #include <sstream>
+#include <utility>
 #include <vector>
 
 #include "pm/base/atomic_file.h"
 #include "pm/base/error.h"
+#include "pm/base/log.h"
 #include "pm/io/gzip.h"
-#include "pm/io/volume_io.h"
+#include "pm/io/volume_header.h"
 
 namespace fs = std::filesystem;
 
@@ -178,6 +180,61 @@ std::uint64_t file_size(const std::string& p, const std::string& where) {
   return s;
 }
 
+// MetaImage AnatomicalOrientation (ITK's convention): one letter per axis
+// naming the side the axis comes from, in the LPS world: R = the axis runs
+// from right to left (+x), L (-x), A = anterior to posterior (+y), P (-y),
+// I = inferior to superior (+z), S (-z).
+Vec3 orientation_letter_direction(char c) {
+  switch (c) {
+    case 'R': return {1, 0, 0};
+    case 'L': return {-1, 0, 0};
+    case 'A': return {0, 1, 0};
+    case 'P': return {0, -1, 0};
+    case 'I': return {0, 0, 1};
+    case 'S': return {0, 0, -1};
+    default: return {0, 0, 0};
+  }
+}
+
+// The code for three axis directions (LPS): the assignment of world axes to
+// image axes with the largest total |cosine|, then the sign of each.
+std::string orientation_code(const Mat3& directions) {
+  static const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  Vec3 d[3];
+  for (int a = 0; a < 3; ++a) d[a] = normalized(directions.column(a));
+  int best = 0;
+  double best_sum = -1;
+  for (int p = 0; p < 6; ++p) {
+    double sum = 0;
+    for (int a = 0; a < 3; ++a) sum += std::fabs(d[a][perms[p][a]]);
+    if (sum > best_sum + 1e-12) best = p, best_sum = sum;
+  }
+  static const char pos[3] = {'R', 'A', 'I'}, neg[3] = {'L', 'P', 'S'};
+  std::string code;
+  for (int a = 0; a < 3; ++a) {
+    const int w = perms[best][a];
+    code += d[a][w] >= 0 ? pos[w] : neg[w];
+  }
+  return code;
+}
+
+// The AnatomicalOrientation value upper-cased when it is a full code (three
+// letters of R/L, A/P, I/S, each pair once), else empty (unknown, e.g. "???").
+std::string parse_orientation_code(const std::string& value) {
+  std::string c;
+  for (char ch : value)
+    if (!std::isspace(static_cast<unsigned char>(ch))) c += static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+  if (c.size() != 3) return {};
+  bool seen[3] = {false, false, false};
+  for (char ch : c) {
+    const Vec3 d = orientation_letter_direction(ch);
+    int w = d.x != 0 ? 0 : (d.y != 0 ? 1 : (d.z != 0 ? 2 : -1));
+    if (w < 0 || seen[w]) return {};
+    seen[w] = true;
+  }
+  return c;
+}
+
 }  // namespace
 
 Volume read_metaimage(const std::string& path) {
@@ -245,7 +302,19 @@ Volume read_metaimage(const std::string& path) {
       break;
     }
   }
+  // World frame: MetaImage is LPS (ITK). AnatomicalOrientation gives the
+  // axis directions when there is no TransformMatrix; with one, the matrix
+  // wins and a disagreeing code is reported.
+  FrameSource frame{"MetaImage", "LPS", "", true};
+  std::string code;
+  if (const auto* ao = P.find(h, {"AnatomicalOrientation"})) {
+    code = parse_orientation_code(*ao);
+    if (!code.empty()) frame.space = "LPS (AnatomicalOrientation " + code + ")";
+  }
   Vec3 axis_dir[3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  if (!code.empty())
+    for (int a = 0; a < 3; ++a) axis_dir[a] = orientation_letter_direction(code[std::size_t(a)]);
+  bool have_matrix = false;
   for (const char* k : {"TransformMatrix", "Rotation", "Orientation"}) {
     if (const auto* t = P.find(h, {k})) {
       const auto v = P.numbers(h, k, *t, 9);
@@ -259,11 +328,15 @@ Volume read_metaimage(const std::string& path) {
         }
         axis_dir[a] = normalized(d);
       }
+      have_matrix = true;
       break;
     }
   }
   g.directions = Mat3::from_columns(axis_dir[0] * sp[0], axis_dir[1] * sp[1], axis_dir[2] * sp[2]);
   check_volume_header(kWho, path, dims, g);
+  if (have_matrix && !code.empty() && orientation_code(g.directions) != code)
+    warn(where + ": AnatomicalOrientation " + code + " disagrees with the TransformMatrix (" +
+         orientation_code(g.directions) + "); using the TransformMatrix");
 
   // Where the data are.
   const std::string* edf = P.find(h, {"ElementDataFile"});
@@ -358,6 +431,7 @@ Volume read_metaimage(const std::string& path) {
     }
   }
   if (msb != host_is_big_endian()) swap_bytes(v.raw(), v.count(), voxel_size(type));
+  v.set_frame_source(std::move(frame));
   return v;
 }
 
@@ -385,6 +459,7 @@ std::string header_text(const Volume& v, bool compress, std::size_t compressed_s
   }
   o << "\nOffset = " << g.origin.x << " " << g.origin.y << " " << g.origin.z << "\n";
   o << "CenterOfRotation = 0 0 0\n";
+  o << "AnatomicalOrientation = " << orientation_code(g.directions) << "\n";
   o << "ElementSpacing = " << g.spacing(0) << " " << g.spacing(1) << " " << g.spacing(2) << "\n";
   o << "DimSize = " << v.dims().nx << " " << v.dims().ny << " " << v.dims().nz << "\n";
   o << "ElementType = " << meta_type_name(v.type()) << "\n";

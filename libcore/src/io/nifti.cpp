@@ -12,8 +12,9 @@
 
 #include "pm/base/atomic_file.h"
 #include "pm/base/error.h"
+#include "pm/base/log.h"
 #include "pm/io/gzip.h"
-#include "pm/io/volume_io.h"
+#include "pm/io/volume_header.h"
 
 namespace fs = std::filesystem;
 
@@ -66,13 +67,25 @@ int to_nifti_type(VoxelType t) {
   return DT_UNKNOWN;
 }
 
-Geometry from_mat44(const mat44& m) {
+// A NIfTI index-to-world matrix (RAS, in the file's units) as our geometry in
+// LPS and mm.
+Geometry from_mat44(const mat44& m, double to_mm) {
   Geometry g;
   for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) g.directions[r][c] = m.m[r][c];
-    g.origin[r] = m.m[r][3];
+    for (int c = 0; c < 3; ++c) g.directions[r][c] = m.m[r][c] * to_mm;
+    g.origin[r] = m.m[r][3] * to_mm;
   }
-  return g;
+  return with_world_signs(g, {-1, -1, 1});
+}
+
+const char* xform_name(int code) {
+  switch (code) {
+    case NIFTI_XFORM_SCANNER_ANAT: return "scanner_anat";
+    case NIFTI_XFORM_ALIGNED_ANAT: return "aligned_anat";
+    case NIFTI_XFORM_TALAIRACH: return "talairach";
+    case NIFTI_XFORM_MNI_152: return "mni_152";
+    default: return "unknown code";
+  }
 }
 
 // Look at the raw header before nifticlib does, which would print its own
@@ -152,16 +165,34 @@ Volume read_nifti(const std::string& path) {
   const Dims dims{static_cast<std::size_t>(nim->dim[1]), static_cast<std::size_t>(nim->dim[2]),
                   static_cast<std::size_t>(nim->dim[3])};
 
-  // Geometry: sform, else qform, else pixdim. World coordinates stay RAS.
+  // Geometry: sform, else qform (both RAS, taken to LPS), else pixdim (no
+  // frame). Units: xyzt_units' space part; unknown (0) is taken as mm, as
+  // nibabel and ITK do.
+  double to_mm = 1;
+  std::string units = "mm";
+  switch (nim->xyz_units) {
+    case NIFTI_UNITS_METER: to_mm = 1000, units = "m"; break;
+    case NIFTI_UNITS_MM: break;
+    case NIFTI_UNITS_MICRON: to_mm = 0.001, units = "um"; break;
+    case NIFTI_UNITS_UNKNOWN: units = "unknown units, taken as mm"; break;
+    default: units = "unknown units code " + std::to_string(nim->xyz_units) + ", taken as mm";
+  }
   Geometry g;
+  FrameSource frame;
+  frame.format = "NIfTI";
   if (nim->sform_code > 0) {
-    g = from_mat44(nim->sto_xyz);
+    g = from_mat44(nim->sto_xyz, to_mm);
+    frame.space = std::string("RAS (sform, ") + xform_name(nim->sform_code) + ", " + units + ")";
   } else if (nim->qform_code > 0) {
-    g = from_mat44(nim->qto_xyz);
+    g = from_mat44(nim->qto_xyz, to_mm);
+    frame.space = std::string("RAS (qform, ") + xform_name(nim->qform_code) + ", " + units + ")";
   } else {
     const double sp[3] = {nim->dx, nim->dy, nim->dz};
     for (int a = 0; a < 3; ++a) check_spacing(kWho, path, a, sp[a]);
     g = Geometry::with_spacing(sp[0], sp[1], sp[2]);
+    frame.space = "none (qform_code = sform_code = 0)";
+    frame.anatomical = false;
+    frame.note = "no qform or sform: voxel indices times pixdim, origin 0, not anatomical coordinates";
   }
   check_volume_header(kWho, path, dims, g);
 
@@ -192,6 +223,10 @@ Volume read_nifti(const std::string& path) {
   // Raw stored values: scl_slope / scl_inter are not applied (labels stay integers).
   Volume v(type, dims, g);
   std::memcpy(v.raw(), nim->data, v.byte_size());
+  if (!frame.anatomical)
+    warn(std::string(kWho) + ": " + quote(path) + ": qform_code and sform_code are both 0 (no world frame); " +
+         "using voxel units: index times pixdim, origin 0, not anatomical coordinates");
+  v.set_frame_source(std::move(frame));
   return v;
 }
 
@@ -215,8 +250,9 @@ void write_nifti(const Volume& v, const std::string& path) {
   NimPtr nim(nifti_make_new_nim(dims, to_nifti_type(v.type()), 0));
   if (!nim) throw IoError(where + ": nifticlib could not make an image header");
 
-  // sform = our index-to-world map; qform = its nearest rigid-plus-scale part.
-  const Geometry& g = v.geometry();
+  // sform = our index-to-world map taken from LPS to NIfTI's RAS; qform = its
+  // nearest rigid-plus-scale part. Units: mm.
+  const Geometry g = with_world_signs(v.geometry(), {-1, -1, 1});
   mat44 m;
   for (int r = 0; r < 4; ++r)
     for (int c = 0; c < 4; ++c) m.m[r][c] = 0;
@@ -225,6 +261,7 @@ void write_nifti(const Volume& v, const std::string& path) {
     m.m[r][3] = static_cast<float>(g.origin[r]);
   }
   m.m[3][3] = 1;
+  nim->xyz_units = NIFTI_UNITS_MM;
   nim->sform_code = NIFTI_XFORM_SCANNER_ANAT;
   nim->sto_xyz = m;
   nim->sto_ijk = nifti_mat44_inverse(m);

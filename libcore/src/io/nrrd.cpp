@@ -9,12 +9,13 @@
 #include <cstring>
 #include <filesystem>
 #include <sstream>
+#include <utility>
 #include <vector>
 
 #include "pm/base/atomic_file.h"
 #include "pm/base/error.h"
 #include "pm/io/gzip.h"
-#include "pm/io/volume_io.h"
+#include "pm/io/volume_header.h"
 
 namespace fs = std::filesystem;
 
@@ -120,34 +121,96 @@ int to_teem_type(VoxelType t) {
   return nrrdTypeUnknown;
 }
 
-// Geometry from the header: space origin + space directions when the NRRD
-// has a space, else per-axis spacings (and axis mins as the origin).
-Geometry nrrd_geometry(const Nrrd* n, const std::string& path) {
+// The world frame a NRRD "space" names, as signs that take its coordinates
+// to LPS (x' = s.x * x, ...), and how many of its components are space (the
+// "-time" spaces have a fourth, time). Returns false for a space we cannot
+// take to 3-D LPS (the 2-D ones).
+struct SpaceMap {
+  Vec3 signs{1, 1, 1};
+  unsigned dims = 3;  // components of the space ("space dimension")
+  bool anatomical = true;
+};
+bool space_to_lps(int space, SpaceMap& m) {
+  switch (space) {
+    case nrrdSpaceRightAnteriorSuperior: m = {{-1, -1, 1}, 3, true}; return true;
+    case nrrdSpaceLeftAnteriorSuperior: m = {{1, -1, 1}, 3, true}; return true;
+    case nrrdSpaceLeftPosteriorSuperior: m = {{1, 1, 1}, 3, true}; return true;
+    case nrrdSpaceRightAnteriorSuperiorTime: m = {{-1, -1, 1}, 4, true}; return true;
+    case nrrdSpaceLeftAnteriorSuperiorTime: m = {{1, -1, 1}, 4, true}; return true;
+    case nrrdSpaceLeftPosteriorSuperiorTime: m = {{1, 1, 1}, 4, true}; return true;
+    // DICOM's (and ACR/NEMA's) scanner frame is patient LPS, as ITK reads it.
+    case nrrdSpaceScannerXYZ: m = {{1, 1, 1}, 3, true}; return true;
+    case nrrdSpaceScannerXYZTime: m = {{1, 1, 1}, 4, true}; return true;
+    // No anatomy: the coordinates are kept as they are.
+    case nrrdSpace3DRightHanded:
+    case nrrdSpace3DLeftHanded: m = {{1, 1, 1}, 3, false}; return true;
+    case nrrdSpace3DRightHandedTime:
+    case nrrdSpace3DLeftHandedTime: m = {{1, 1, 1}, 4, false}; return true;
+    default: return false;
+  }
+}
+
+// Geometry from the header, in LPS: space origin + space directions when the
+// NRRD has a space (converted from the named space), else per-axis spacings
+// (and axis mins as the origin), kept as given.
+Geometry nrrd_geometry(const Nrrd* n, const std::string& path, FrameSource& frame) {
   const std::string who = "read_nrrd";
+  const std::string where = who + ": " + quote(path);
   Geometry g;
-  if (n->spaceDim > 0) {
-    if (n->spaceDim != 3) {
-      std::ostringstream m;
-      m << who << ": " << quote(path) << ": space dimension is " << n->spaceDim << "; expected 3";
-      throw InputError(m.str());
+  frame.format = "NRRD";
+  if (n->space != nrrdSpaceUnknown || n->spaceDim > 0) {
+    SpaceMap map;
+    if (n->space != nrrdSpaceUnknown) {
+      const std::string name = airEnumStr(nrrdSpace, n->space);
+      if (!space_to_lps(n->space, map))
+        throw InputError(where + ": space \"" + name + "\" is " + std::to_string(n->spaceDim) +
+                         "-D; expected a 3-D space (right-anterior-superior, left-posterior-superior, "
+                         "left-anterior-superior, scanner-xyz, 3D-right-handed, 3D-left-handed or their -time "
+                         "forms)");
+      if (n->spaceDim != map.dims) {
+        std::ostringstream m;
+        m << where << ": space \"" << name << "\" has " << map.dims << " dimensions but the header gives "
+          << n->spaceDim << "; expected space directions of " << map.dims << " components";
+        throw InputError(m.str());
+      }
+      frame.space = name;
+      frame.anatomical = map.anatomical;
+      if (!map.anatomical) frame.note = "space \"" + name + "\" has no anatomy: coordinates kept as given (as LPS)";
+    } else {
+      if (n->spaceDim != 3) {
+        std::ostringstream m;
+        m << where << ": space dimension is " << n->spaceDim << "; expected 3";
+        throw InputError(m.str());
+      }
+      frame.space = "none (space dimension 3)";
+      frame.anatomical = false;
+      frame.note = "no named space: coordinates kept as given (as LPS)";
     }
     Vec3 cols[3];
     for (int a = 0; a < 3; ++a) {
-      for (int c = 0; c < 3; ++c) {
+      for (unsigned c = 0; c < map.dims; ++c) {
         const double d = n->axis[a].spaceDirection[c];
         if (std::isnan(d)) {
           std::ostringstream m;
-          m << who << ": " << quote(path) << ": axis " << a
-            << " has no space direction; expected a direction for each of the 3 axes";
+          m << where << ": axis " << a << " has no space direction; expected a direction for each of the 3 axes";
           throw InputError(m.str());
         }
-        cols[a][c] = d;
+        if (c < 3) cols[a][int(c)] = d;
+        else if (d != 0) {
+          std::ostringstream m;
+          m << where << ": the space direction of axis " << a << " has time component " << d
+            << "; expected 0 (3 spatial axes)";
+          throw InputError(m.str());
+        }
       }
     }
     g.directions = Mat3::from_columns(cols[0], cols[1], cols[2]);
     for (int c = 0; c < 3; ++c) g.origin[c] = std::isnan(n->spaceOrigin[c]) ? 0.0 : n->spaceOrigin[c];
-    return g;
+    return with_world_signs(g, map.signs);
   }
+  frame.space = "none";
+  frame.anatomical = false;
+  frame.note = "no space field: spacings and axis mins kept as given (as LPS)";
   double s[3];
   for (int a = 0; a < 3; ++a) {
     const NrrdAxisInfo& ax = n->axis[a];
@@ -188,6 +251,7 @@ Volume read_nrrd(const std::string& path) {
   Dims dims;
   VoxelType type = VoxelType::f32;
   Geometry geom;
+  FrameSource frame;
   {
     NrrdHolder h;
     NioHolder io;
@@ -204,7 +268,7 @@ Volume read_nrrd(const std::string& path) {
                        "\" is not supported; expected a scalar integer or floating-point type");
     }
     dims = {h.n->axis[0].size, h.n->axis[1].size, h.n->axis[2].size};
-    geom = nrrd_geometry(h.n, path);
+    geom = nrrd_geometry(h.n, path, frame);
     check_volume_header(who, path, dims, geom);
 
     // Size check against what is left of a single data file.
@@ -253,6 +317,7 @@ Volume read_nrrd(const std::string& path) {
     throw InputError(where + ": the file changed while it was being read");
   Volume v(type, dims, geom);
   std::memcpy(v.raw(), h.n->data, v.byte_size());
+  v.set_frame_source(std::move(frame));
   return v;
 }
 
@@ -272,7 +337,8 @@ void wrap_volume(NrrdHolder& h, const Volume& v, const std::string& where) {
   const Dims& d = v.dims();
   if (nrrdWrap_va(h.n, const_cast<void*>(v.raw()), to_teem_type(v.type()), 3u, d.nx, d.ny, d.nz))
     throw Error(where + ": " + teem_error());
-  if (nrrdSpaceDimensionSet(h.n, 3)) throw Error(where + ": " + teem_error());
+  // libcore's world frame (see pm/base/volume.h).
+  if (nrrdSpaceSet(h.n, nrrdSpaceLeftPosteriorSuperior)) throw Error(where + ": " + teem_error());
   const Geometry& g = v.geometry();
   double origin[NRRD_SPACE_DIM_MAX] = {g.origin.x, g.origin.y, g.origin.z};
   if (nrrdSpaceOriginSet(h.n, origin)) throw Error(where + ": " + teem_error());

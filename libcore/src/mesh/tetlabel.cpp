@@ -375,33 +375,35 @@ std::size_t make_manifold(TetMesh& tm, int label, int outside_label) {
   return flips;
 }
 
-void write_medit(const TetMesh& tm, int outside_label, const std::string& path) {
-  write_atomically(path, [&](const std::string& tmp) {
-    std::FILE* f = std::fopen(tmp.c_str(), "w");
-    if (!f) throw IoError(quote(path) + ": cannot open for writing");
-    std::vector<int> remap(tm.points.size(), -1);
-    std::vector<int> used;
-    for (std::size_t t = 0; t < tm.tets.size(); ++t)
-      if (tm.labels[t] != outside_label)
-        for (int v : tm.tets[t])
-          if (remap[v] < 0) {
-            remap[v] = int(used.size()) + 1;
-            used.push_back(v);
-          }
-    std::fprintf(f, "MeshVersionFormatted 2\nDimension 3\nVertices\n%zu\n", used.size());
-    for (int v : used) std::fprintf(f, "%.17g %.17g %.17g 0\n", tm.points[v].x, tm.points[v].y, tm.points[v].z);
-    std::size_t n = 0;
-    for (std::size_t t = 0; t < tm.tets.size(); ++t) n += tm.labels[t] != outside_label;
-    std::fprintf(f, "Tetrahedra\n%zu\n", n);
-    for (std::size_t t = 0; t < tm.tets.size(); ++t)
-      if (tm.labels[t] != outside_label) {
-        const auto& v = tm.tets[t];
-        std::fprintf(f, "%d %d %d %d %d\n", remap[v[0]], remap[v[1]], remap[v[2]], remap[v[3]], tm.labels[t]);
+LabelledTets labelled_tets(const TetMesh& tm, int outside_label) {
+  LabelledTets out;
+  std::vector<int> remap(tm.points.size(), -1);
+  for (std::size_t t = 0; t < tm.tets.size(); ++t) {
+    if (tm.labels[t] == outside_label) continue;
+    std::array<int, 4> c;
+    for (int k = 0; k < 4; ++k) {
+      int& r = remap[std::size_t(tm.tets[t][k])];
+      if (r < 0) {
+        r = int(out.vertices.size());
+        out.vertices.push_back(tm.points[std::size_t(tm.tets[t][k])]);
       }
-    std::fprintf(f, "End\n");
-    const bool bad = std::ferror(f) != 0;
-    if (std::fclose(f) != 0 || bad) throw IoError(quote(path) + ": write failed");
-  });
+      c[k] = r;
+    }
+    out.tets.push_back(c);
+    out.materials.push_back(tm.labels[t]);
+  }
+  const Mesh im = interface_mesh(tm, outside_label);
+  const auto& index = im.vertex_scalars.at("index");
+  const auto& la = im.face_ints.at("label_a");
+  const auto& lb = im.face_ints.at("label_b");
+  for (std::size_t f = 0; f < im.faces.size(); ++f) {
+    std::array<int, 3> c;
+    for (int k = 0; k < 3; ++k) c[k] = remap[std::size_t(index[std::size_t(im.faces[f][k])])];
+    // Every such face borders a kept tetrahedron, so its corners are kept.
+    out.triangles.push_back(c);
+    out.triangle_labels.push_back({la[f], lb[f]});
+  }
+  return out;
 }
 
 }  // namespace pm

@@ -639,7 +639,6 @@ void MultiEngine::relax(int level, MultiLevelStats& st) {
   int since = 0;
   bool conv_final = false;
   for (int it = 0; it < p_.max_iters; ++it) {
-    check_cancelled();
     rebin();
     double e = 0;
     const double change = sweep(e);

@@ -1050,7 +1050,6 @@ bool Engine::relax_level(int level, int levels) {
   // scale); not disturbed by the staleness of Gauss-Seidel energies.
   int since = 0, refills = 0;
   for (int it = 0; it < p_.max_iters; ++it) {
-    check_cancelled();
     Stopwatch sw;
     if (!use_lists_) {
       rebin();  // gather from the bins, rebuilt every sweep

@@ -40,4 +40,7 @@ struct Cancelled : Error {
 /// Quote a file name for messages: "name".
 std::string quote(const std::string& s);
 
+/// A number for messages, as a user would type it (%g: "3", "0.5", "4e+09").
+std::string format_number(double v);
+
 }  // namespace pm

@@ -6,9 +6,25 @@
 // (NRRD "space directions"; its length is the spacing of that axis). Voxels
 // are samples at nodes ("cell-centered" data are treated as node samples at
 // the cell centres). Axis 0 varies fastest in memory.
+//
+// World frame: LPS. Every world coordinate inside libcore (volume origins
+// and directions, particles, meshes) is patient LPS: +x towards the
+// patient's Left, +y Posterior, +z Superior, as in DICOM, ITK, 3D Slicer's
+// files and MetaImage. The volume readers convert into it (NRRD
+// "space", NIfTI's RAS sform/qform and xyzt_units, MetaImage, which is LPS;
+// INR and VDB carry no frame and are taken as LPS) and the writers convert
+// out of it (NRRD "space: left-posterior-superior", NIfTI RAS sform + qform
+// in mm, MetaImage LPS), so a conversion between any two formats keeps the
+// anatomy: the same voxel sits at the same anatomical point. RAS (NIfTI,
+// FreeSurfer) is LPS with x and y negated: ras_from_lps(). Files without any
+// frame (NRRD without "space", a NIfTI with qform_code = sform_code = 0, a
+// volume made from a mesh) keep their coordinates as given. World units are
+// millimetres where the file states its units (NIfTI xyzt_units: metres and
+// micrometres are converted), otherwise the file's numbers as they are.
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "pm/base/vec.h"
@@ -46,6 +62,30 @@ struct Geometry {
   static Geometry with_spacing(double sx, double sy, double sz, Vec3 origin = {});
 };
 
+/// A point in RAS from one in LPS (x and y negated); its own inverse, so it
+/// also maps RAS to LPS.
+inline Vec3 ras_from_lps(const Vec3& p) { return {-p.x, -p.y, p.z}; }
+inline Vec3 lps_from_ras(const Vec3& p) { return ras_from_lps(p); }
+/// g with its world coordinates mapped by S = diag(s.x, s.y, s.z), each +1 or
+/// -1: origin' = S * origin, directions' = S * directions (the voxels stay
+/// where they are in the anatomy; only the world axes turn).
+/// with_world_signs(g, {-1, -1, 1}) maps RAS to LPS and back.
+Geometry with_world_signs(const Geometry& g, const Vec3& s);
+
+/// Where a volume's world coordinates came from, as the reader found it
+/// (volconv --info reports it). Empty for volumes made in memory.
+struct FrameSource {
+  std::string format;  ///< "NRRD", "NIfTI", "MetaImage", "INR", "VDB"
+  /// The file's own frame as it names it, e.g. "right-anterior-superior"
+  /// (NRRD space), "RAS (sform, scanner_anat, mm)", "none".
+  std::string space;
+  /// One line when the coordinates are not anatomical or were taken without
+  /// a frame (INR, a NIfTI without qform and sform), else empty.
+  std::string note;
+  /// False when the file has no frame and the coordinates are kept as given.
+  bool anatomical = true;
+};
+
 /// Volume: dims, geometry, and a typed voxel buffer.
 class Volume {
  public:
@@ -58,6 +98,9 @@ class Volume {
   const Dims& dims() const { return dims_; }
   const Geometry& geometry() const { return geometry_; }
   Geometry& geometry() { return geometry_; }
+  /// Set by the volume readers: the frame the file's coordinates were in.
+  const FrameSource& frame_source() const { return frame_source_; }
+  void set_frame_source(FrameSource f) { frame_source_ = std::move(f); }
   std::size_t count() const { return dims_.count(); }
   bool empty() const { return count() == 0; }
 
@@ -92,8 +135,18 @@ class Volume {
   VoxelType type_ = VoxelType::f32;
   Dims dims_;
   Geometry geometry_;
+  FrameSource frame_source_;
   std::vector<unsigned char> bytes_;
 };
+
+/// The same volume with every flipped axis stored the other way round, for
+/// formats and libraries that hold only positive per-axis spacings (INR,
+/// CGAL's images): for diagonal directions, each axis with a negative step
+/// (x and y of a RAS NIfTI in LPS) gets its voxels in reverse order and the
+/// origin at its other end, so every voxel keeps its world position. A volume
+/// without flipped axes is returned unchanged.
+/// \throw InputError naming `what` when the directions are not diagonal (oblique axes).
+Volume with_positive_steps(const Volume& v, const std::string& what);
 
 /// Throws InputError naming `what` (usually a file name) if any voxel is NaN/Inf.
 void require_finite(const Volume& v, const std::string& what);

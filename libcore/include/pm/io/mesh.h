@@ -1,40 +1,44 @@
 #pragma once
-// Reading and writing meshes and point sets (the Mesh type: pm/base/mesh.h).
-#include <array>
-#include <map>
+// Reading and writing meshes and point sets (the Mesh type: pm/base/mesh.h),
+// choosing the format by extension from one table (mesh.cpp):
+//   .ply   PLY, every property                                   read + write
+//   .vtp   VTK XML PolyData, every property as point/cell data    write
+//   .vtk   VTK legacy POLYDATA, every property                    read + write
+//   .mesh  MEDIT, triangle references for label pairs             read + write
+//   .obj .off .stl  geometry only (CGAL)                          read + write
+// Coordinates inside libcore are in the LPS world frame (pm/io/frame.h);
+// write_mesh converts them into the frame asked for and says so in the file
+// where the format can (PLY, VTK, MEDIT, OBJ comments), read_mesh converts
+// back from the frame a file states.
 #include <string>
-#include <vector>
 
 #include "pm/base/mesh.h"
-#include "pm/base/vec.h"
+#include "pm/io/frame.h"
 
 namespace pm {
 
 struct MeshWriteParams {
-  bool binary = true;  ///< PLY/STL: binary (default) or ASCII
+  bool binary = true;                  ///< PLY/STL/VTK legacy: binary (default) or ASCII (see write_ply)
+  WorldFrame frame = WorldFrame::lps;  ///< frame of the coordinates in the file
 };
 
-/// Read by extension: .ply (ASCII / binary little and big endian; vertex
-/// properties x y z, optional nx ny nz, any other scalar property; face
-/// vertex_indices/vertex_index lists (polygons are fan-triangulated) and
-/// integer face properties), .off, .obj, .stl.
+/// Read by extension (.ply .vtk .mesh .obj .off .stl), into the LPS frame.
 /// \throw IoError, InputError naming the file, the problem and the expectation;
-/// UsageError for an unknown extension.
+/// UsageError for an extension that is not read.
 Mesh read_mesh(const std::string& path);
 
-/// Write by extension (.ply keeps every property: xyz, normals and vertex
-/// scalars as float, face properties as int; .off/.obj/.stl keep geometry only).
-/// Atomic (temporary file + rename).
-/// \throw UsageError for an unknown extension (expected .ply .off .obj .stl),
-/// InputError when the mesh fails validate() or cannot be stored in the format,
-/// IoError when the file cannot be written.
+/// Write by extension (.ply .vtp .vtk .mesh .obj .off .stl); atomic
+/// (temporary file + rename).
+/// \throw UsageError for another extension, InputError when the mesh fails
+/// validate() or cannot be stored in the format (property names, STL without
+/// faces), IoError when the file cannot be written.
 void write_mesh(const Mesh& m, const std::string& path, const MeshWriteParams& p = {});
 
-/// PLY only, to/from an already chosen path (no atomic rename): used by tests and fuzzers.
-/// read_ply accepts every PLY scalar type; other elements than vertex and face
-/// are skipped. write_ply writes binary little endian or ASCII.
-Mesh read_ply(const std::string& path);
-void write_ply(const Mesh& m, const std::string& path, bool binary = true);
-
+/// True if write_mesh knows the extension; `points`: and the format keeps a
+/// point set with its vertex scalars (.ply .vtp .vtk).
+bool is_mesh_path(const std::string& path, bool points = false);
+/// The extensions write_mesh knows (or those that keep point sets), for
+/// messages and help texts: ".ply .vtp .vtk .mesh .obj .off .stl".
+std::string mesh_extensions(bool points = false);
 
 }  // namespace pm

@@ -6,11 +6,16 @@
 // Geometry: Offset (or Position / Origin) is the world position of voxel 0;
 // the direction of axis a is TransformMatrix (or Rotation / Orientation)
 // elements [3a, 3a+2], normalised and scaled by ElementSpacing (or
-// ElementSize) of that axis. World coordinates are kept as stored (usually LPS).
+// ElementSize) of that axis. World coordinates are LPS, as ITK writes them
+// (libcore's frame, pm/base/volume.h). AnatomicalOrientation (ITK's code: a
+// letter per axis naming the side it comes from, "RAI" = +x +y +z in LPS)
+// gives the directions when there is no TransformMatrix; with one, the matrix
+// wins and a code that disagrees is reported with pm::warn.
 // HeaderSize applies to separate data files (-1: the data end the file).
 // CompressedDataSize is only checked against the file size: the data are
 // inflated from all bytes that follow (some writers understate it).
-// Writes little/native byte order, TransformMatrix, Offset, ElementSpacing.
+// Writes little/native byte order, TransformMatrix, Offset,
+// AnatomicalOrientation (the code closest to the directions), ElementSpacing.
 #include <string>
 
 #include "pm/base/volume.h"

@@ -4,14 +4,20 @@
 // Reading: exactly 3 axes of a scalar type (block types are rejected). The
 // header is read first without data; sizes are checked against the bytes the
 // (single) data file holds before Teem allocates anything. Geometry comes from
-// "space origin" + "space directions" when the file has a space (its world
-// coordinates are kept as they are, whatever the named space, e.g. LPS or
-// RAS), else from "spacings" (1 when absent; or from axis mins/maxs) with
-// "axis mins" as the origin. Voxels are node samples: for an axis with
-// "centers: cell" and an axis min, the first sample sits half a spacing inside
-// the min. Teem's own complaints are passed on as its innermost reason.
-// Writing: "space dimension: 3" (no named space), space directions, space
-// origin, kinds domain; raw or gzip encoding, native byte order.
+// "space origin" + "space directions" when the file has a space, converted
+// from the named space into libcore's LPS (pm/base/volume.h):
+// right-anterior-superior negates x and y, left-anterior-superior y;
+// left-posterior-superior and scanner-xyz (DICOM's patient frame) are LPS;
+// 3D-right-handed, 3D-left-handed and a bare "space dimension: 3" have no
+// anatomy and are kept as given; the "-time" spaces need a time component of
+// 0 in every axis direction. A 2-D space, or a space whose dimension differs
+// from the space directions', is an error. Without a space: "spacings" (1
+// when absent; or from axis mins/maxs) with "axis mins" as the origin, kept as
+// given. Voxels are node samples: for an axis with "centers: cell" and an
+// axis min, the first sample sits half a spacing inside the min. Teem's own
+// complaints are passed on as its innermost reason.
+// Writing: "space: left-posterior-superior", space directions, space origin,
+// kinds domain; raw or gzip encoding, native byte order.
 #include <string>
 
 #include "pm/base/volume.h"

@@ -11,6 +11,7 @@
 #include "pm/base/vec.h"
 #include "pm/io/mesh.h"
 #include "pm/mesh/topology.h"
+#include "pm/io/tet_mesh.h"
 
 namespace pm {
 
@@ -79,9 +80,11 @@ Mesh interface_mesh(const TetMesh& tm, int outside_label);
 /// else, oriented outward (normal points out of the material).
 Mesh material_surface(const TetMesh& tm, int label, int outside_label);
 
-/// Write the tetrahedra whose label differs from `outside_label` as a MEDIT
-/// `.mesh` (Vertices, Tetrahedra with their label as reference). Atomic.
-void write_medit(const TetMesh& tm, int outside_label, const std::string& path);
+/// The tetrahedra whose label differs from `outside_label`, for
+/// write_tet_mesh: their points (renumbered in order of first use), their
+/// labels as materials, and the faces of interface_mesh() (boundary and
+/// interface triangles, oriented from label_a into label_b) with their labels.
+LabelledTets labelled_tets(const TetMesh& tm, int outside_label);
 
 
 }  // namespace pm

@@ -1,23 +1,13 @@
 #pragma once
-// Per-format mesh readers and writers behind pm::read_mesh / pm::write_mesh.
-// OFF, OBJ and STL go through CGAL's polygon-soup IO (mesh_cgal.cpp, the only
+// OFF, OBJ and STL through CGAL's polygon-soup IO (mesh_cgal.cpp, the only
 // translation unit that includes CGAL's IO headers); they keep geometry only.
 // All write to the given path directly (no atomic rename: write_mesh does that).
-#include <cstddef>
 #include <string>
-#include <vector>
 
-#include "pm/base/vec.h"
-#include "pm/io/mesh.h"
+#include "pm/base/mesh.h"
+#include "pm/io/frame.h"
 
 namespace pm {
-
-/// A Mesh from a polygon soup: polygons (each a list of vertex indices, at
-/// least 3) are fan-triangulated (v0 v1 v2, v0 v2 v3, ...).
-/// \throw InputError "fn: "path": polygon i ..." when a polygon has fewer than
-/// 3 vertices or an index >= points.size().
-Mesh mesh_from_polygons(std::vector<Vec3> points, const std::vector<std::vector<std::size_t>>& polygons,
-                        const std::string& fn, const std::string& path);
 
 /// OFF (ASCII or binary, as CGAL reads it). Header counts are checked against
 /// the file size before anything is allocated.
@@ -29,8 +19,9 @@ void write_off(const Mesh& m, const std::string& path);
 /// Wavefront OBJ: `v` and `f` records (negative indices allowed); normals,
 /// texture coordinates, groups and materials are dropped.
 Mesh read_obj(const std::string& path);
-/// `v` and `f` records only (normals are not written).
-void write_obj(const Mesh& m, const std::string& path);
+/// `v` and `f` records only (normals are not written), after a comment line
+/// `# frame LPS SPACE=LPS` (or RAS) naming the frame of the coordinates.
+void write_obj(const Mesh& m, const std::string& path, WorldFrame frame = WorldFrame::lps);
 
 /// STL, binary or ASCII (detected). Identical corner positions are merged into
 /// one vertex. \throw InputError when the file holds no triangle.

@@ -1,0 +1,47 @@
+#pragma once
+// Labelled tetrahedral meshes for writing: the tetrahedra of some materials
+// plus the triangles that bound them, in the formats finite-element and
+// visualisation tools read. Format by extension (one table, tet_mesh.cpp):
+//   .mesh  MEDIT (Vertices, Triangles with a reference per label pair,
+//          Tetrahedra with the material as reference)
+//   .vtu   VTK XML UnstructuredGrid, cell array `material`
+//   .vtk   VTK legacy UNSTRUCTURED_GRID, cell scalars `material`
+//   .msh   Gmsh 4.1 ASCII, one physical volume group per material
+#include <array>
+#include <string>
+#include <vector>
+
+#include "pm/base/vec.h"
+#include "pm/io/frame.h"
+
+namespace pm {
+
+struct LabelledTets {
+  std::vector<Vec3> vertices;                   ///< #V, world units (LPS)
+  std::vector<std::array<int, 4>> tets;         ///< #T vertex indices, positively oriented
+  std::vector<int> materials;                   ///< #T material label of each tetrahedron
+  std::vector<std::array<int, 3>> triangles;    ///< #B boundary and interface triangles
+  /// #B (label_a, label_b), label_a < label_b: the labels on the two sides of
+  /// each triangle (the outside label for a boundary triangle).
+  std::vector<std::array<int, 2>> triangle_labels;
+
+  /// \throw InputError when sizes disagree or an index is out of range.
+  void validate(const std::string& what) const;
+};
+
+struct TetWriteParams {
+  WorldFrame frame = WorldFrame::lps;  ///< coordinates are converted into it and the file says so
+  bool binary = false;                 ///< .vtk only: BINARY instead of ASCII
+};
+
+/// Extensions write_tet_mesh knows, for messages: ".mesh .vtu .vtk .msh".
+std::string tet_mesh_extensions();
+/// True if write_tet_mesh knows the extension of `path`.
+bool is_tet_mesh_path(const std::string& path);
+
+/// Write by extension, atomically (temporary file + rename).
+/// \throw UsageError for another extension, InputError when `t` fails
+/// validate(), IoError when the file cannot be written.
+void write_tet_mesh(const LabelledTets& t, const std::string& path, const TetWriteParams& p = {});
+
+}  // namespace pm
