@@ -1,6 +1,11 @@
 # Shared fixtures of the particlemesh Python tests: analytic volumes.
 # The module comes from PYTHONPATH (build/python, set by CTest); without it
 # every test is skipped.
+import os
+import signal
+import sys
+import threading
+
 import numpy as np
 import pytest
 
@@ -35,39 +40,38 @@ def edge_counts(triangles):
 
 
 def read_ply(path):
-    """(vertices V x 3, faces F x 3, face properties {name: F}) of a binary
-    little-endian PLY as particlemesh writes it (float vertex properties,
-    uchar-int face lists, int face properties). meshio 7 cannot read PLY face
-    properties, hence this small reader."""
-    types = {"float": "<f4", "double": "<f8", "int": "<i4", "uchar": "u1", "uint": "<u4"}
-    with open(path, "rb") as f:
-        assert f.readline().strip() == b"ply"
-        elements, cur = [], None
-        while True:
-            line = f.readline().decode().split()
-            if line[0] == "end_header":
-                break
-            if line[0] == "format":
-                assert line[1] == "binary_little_endian"
-            if line[0] == "element":
-                cur = (line[1], int(line[2]), [])
-                elements.append(cur)
-            if line[0] == "property":
-                cur[2].append(("list", line[2], line[3], line[4]) if line[1] == "list" else (types[line[1]], line[2]))
-        data = f.read()
-    off, verts, faces, props = 0, None, None, {}
-    for name, count, fields in elements:
-        if name == "vertex":
-            dt = np.dtype([(p[1], p[0]) for p in fields])
-            v = np.frombuffer(data, dt, count, off)
-            off += dt.itemsize * count
-            verts = np.stack([v["x"], v["y"], v["z"]], axis=1).astype(np.float64)
-        elif name == "face":
-            assert fields[0][:3] == ("list", "uchar", "int")
-            dt = np.dtype([("n", "u1"), ("idx", "<i4", (3,))] + [(p[1], p[0]) for p in fields[1:]])
-            fa = np.frombuffer(data, dt, count, off)
-            off += dt.itemsize * count
-            assert np.all(fa["n"] == 3)
-            faces = fa["idx"].astype(np.int64)
-            props = {p[1]: fa[p[1]].astype(np.int64) for p in fields[1:]}
-    return verts, faces, props
+    """(vertices V x 3, faces F x 3, face properties {name: F}) of a PLY the
+    tools wrote, read by meshio (the independent reader; the tools write
+    meshes with face properties as ASCII PLY, which meshio reads)."""
+    meshio = pytest.importorskip("meshio")
+    m = meshio.read(str(path))
+    tri = [i for i, c in enumerate(m.cells) if c.type == "triangle"]
+    assert len(tri) == 1, f"{path}: expected one triangle block, got {[c.type for c in m.cells]}"
+    props = {k: np.asarray(v[tri[0]]).astype(np.int64) for k, v in m.cell_data.items()}
+    return m.points.astype(np.float64), m.cells[tri[0]].data.astype(np.int64), props
+
+
+def interrupt_during(call):
+    """Run call() on this (the main) thread and press Ctrl-C while it runs:
+    another thread sends SIGINT as soon as it gets the GIL. With a switch
+    interval of 1000 s this thread keeps the GIL until the call releases it
+    for its long computation, so the signal arrives while libcore runs and
+    only libcore's cancellation check (Python's signal check) can stop it.
+    Asserts that call() raised KeyboardInterrupt."""
+    ready = threading.Event()
+
+    def interrupt():
+        ready.wait()
+        os.kill(os.getpid(), signal.SIGINT)
+
+    t = threading.Thread(target=interrupt)
+    old = sys.getswitchinterval()
+    t.start()
+    sys.setswitchinterval(1000)
+    try:
+        ready.set()
+        with pytest.raises(KeyboardInterrupt):
+            call()
+    finally:
+        sys.setswitchinterval(old)
+        t.join()

@@ -49,7 +49,7 @@ def test_grey_sphere_surface():
 def test_mask_sphere_surface_and_tets():
     d = sphere_distance(n=N, h=H, radius=R, origin=ORIGIN)
     mask = (d < 0).astype(np.uint8)
-    m = pm.mesh_surface(mask, voxel_spacing=H, origin=ORIGIN, progress=False)
+    m = pm.mesh_surface(mask, voxel_spacing=H, origin=ORIGIN, tetrahedra=True, progress=False)
     assert m.kind == "mask"
     # The mask's surface crosses the grid edges from inside to outside nodes,
     # which cross the sphere: it is within one voxel of it; tightening with
@@ -76,7 +76,8 @@ def cube():
     # Voxel spacing 0.5 and an origin: world units everywhere.
     h, origin = 0.5, (10.0, -2.0, 3.0)
     lab = two_material_cube()
-    return h, origin, pm.mesh_materials(lab, voxel_spacing=h, origin=origin, radius=h, progress=False)
+    return h, origin, pm.mesh_materials(lab, voxel_spacing=h, origin=origin, radius=h, tetrahedra=True,
+                                        progress=False)
 
 
 def test_two_material_cube_interface(cube):

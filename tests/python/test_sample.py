@@ -3,13 +3,14 @@
 import math
 import os
 import signal
+import sys
 import threading
 
 import numpy as np
 import pytest
 
 import particlemesh as pm
-from conftest import sphere_distance
+from conftest import interrupt_during, sphere_distance
 
 H, R, N = 0.5, 5.0, 33
 ORIGIN = (-7.0, -9.0, -8.0)
@@ -80,31 +81,57 @@ def test_exception_in_callback_stops_the_run(sphere):
             raise Stop("enough")
 
     with pytest.raises(Stop, match="enough"):
-        pm.sample(sphere, iso=0.0, spacing=0.5, voxel_spacing=H, origin=ORIGIN, tolerance=0, max_iters=3000,
+        pm.sample(sphere, iso=0.0, spacing=0.5, voxel_spacing=H, origin=ORIGIN, tolerance=1e-12, max_iters=3000,
                   progress=cb)
     # and the module still works afterwards
     assert len(pm.sample(sphere, iso=0.0, spacing=2.0, voxel_spacing=H, origin=ORIGIN, progress=False).points) > 50
 
 
 def test_ctrl_c_stops_the_run(sphere):
-    # SIGINT from another thread while the engine runs with the GIL released:
-    # the engine's cancellation check runs Python's signal handler, which
-    # raises KeyboardInterrupt; the call ends with it.
-    started = threading.Event()
+    # Ctrl-C while the engine runs with the GIL released and no Python
+    # callback: the engine's cancellation check runs Python's signal handler,
+    # the call ends with KeyboardInterrupt, and the module is left as it was:
+    # the next run gives what it gave before.
+    small = dict(iso=0.0, spacing=2.0, voxel_spacing=H, origin=ORIGIN, progress=False)
+    before = pm.sample(sphere, **small).points
+    interrupt_during(lambda: pm.sample(sphere, iso=0.0, spacing=0.5, voxel_spacing=H, origin=ORIGIN,
+                                       tolerance=1e-12, max_iters=3000, progress=False))
+    assert np.array_equal(pm.sample(sphere, **small).points, before)
+
+
+def test_gil_released_during_a_call(sphere):
+    # With a switch interval of 1000 s a thread holding the GIL keeps it until
+    # it releases it itself. Another thread, woken at the first progress call,
+    # can then only run while the call runs if the call released the GIL.
+    started, ran = threading.Event(), threading.Event()
+
+    def other():
+        if started.wait(120):
+            ran.set()
+
+    seen = []
 
     def cb(label, done, total, detail):
         started.set()
+        seen.append(ran.is_set())
 
-    def interrupt():
-        started.wait(60)
-        os.kill(os.getpid(), signal.SIGINT)
-
-    t = threading.Thread(target=interrupt)
+    t = threading.Thread(target=other)
+    old = sys.getswitchinterval()
     t.start()
+    sys.setswitchinterval(1000)
     try:
-        with pytest.raises(KeyboardInterrupt):
-            pm.sample(sphere, iso=0.0, spacing=0.5, voxel_spacing=H, origin=ORIGIN, tolerance=0, max_iters=3000,
-                      progress=cb)
+        pm.sample(sphere, iso=0.0, spacing=1.0, voxel_spacing=H, origin=ORIGIN, progress=cb)
     finally:
+        sys.setswitchinterval(old)
+        started.set()
         t.join()
-    assert len(pm.sample(sphere, iso=0.0, spacing=2.0, voxel_spacing=H, origin=ORIGIN, progress=False).points) > 50
+    assert len(seen) > 2 and not seen[0]
+    assert any(seen), "no other thread ran during the call: the GIL was not released"
+
+
+def test_tqdm_bars(sphere, capfd, monkeypatch):
+    pytest.importorskip("tqdm")
+    monkeypatch.delenv("PM_NO_TQDM", raising=False)
+    pm.sample(sphere, iso=0.0, spacing=2.0, voxel_spacing=H, origin=ORIGIN)  # progress=None: tqdm when present
+    err = capfd.readouterr().err
+    assert "particles, dE" in err  # the engine's detail in the bar's postfix

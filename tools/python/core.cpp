@@ -270,6 +270,7 @@ class Run {
       std::lock_guard<std::mutex> lock(g_run_mutex);
       tbb::global_control control(tbb::global_control::max_allowed_parallelism, threads_);
       pm::set_cancel_hook([this] { return cancel(); });
+      pm::set_warning_hook([this](const std::string& msg) { warnings_.push_back(msg); });
       if (!progress_.is_none())
         pm::set_progress_hook([this](const std::string& label, std::size_t done, std::size_t total,
                                      const std::string& detail) { report(label, done, total, detail); });
@@ -277,6 +278,7 @@ class Run {
         ~Reset() {
           pm::set_cancel_hook({});
           pm::set_progress_hook({});
+          pm::set_warning_hook({});
         }
       } reset;
       try {
@@ -295,6 +297,9 @@ class Run {
     }
     return std::move(*result);
   }
+
+  /// What libcore passed to pm::warn during the run (called under its log lock).
+  const std::vector<std::string>& warnings() const { return warnings_; }
 
  private:
   bool cancel() {
@@ -321,11 +326,14 @@ class Run {
   py::object progress_;
   std::size_t threads_;
   std::optional<py::error_already_set> error_;
+  std::vector<std::string> warnings_;
 };
 
-py::list warnings_list(const std::vector<std::string>& w) {
+// The stages' warnings, then libcore's pm::warn lines of the run.
+py::list warnings_list(const std::vector<std::string>& w, const Run& run) {
   py::list l;
   for (const auto& s : w) l.append(s);
+  for (const auto& s : run.warnings()) l.append(s);
   return l;
 }
 
@@ -338,11 +346,8 @@ py::dict seconds_dict(const std::map<std::string, double>& s) {
 // --- the functions --------------------------------------------------------------
 
 py::dict read_volume(const std::string& path) {
-  pm::Volume v;
-  {
-    py::gil_scoped_release nogil;
-    v = pm::read_volume(path);
-  }
+  Run run(py::none(), 0);
+  const pm::Volume v = run([&] { return pm::read_volume(path); });
   const pm::Geometry& g = v.geometry();
   py::dict d;
   d["array"] = to_array(v);
@@ -354,6 +359,13 @@ py::dict read_volume(const std::string& path) {
     for (int r = 0; r < 3; ++r) dirs[std::size_t(r)][std::size_t(c)] = col[r];
   }
   d["directions"] = dirs;
+  // libcore's world frame (pm/base/volume.h), as volconv --info reports it.
+  const pm::FrameSource& f = v.frame_source();
+  d["frame"] = f.anatomical ? "LPS" : "none";
+  d["source_format"] = f.format;
+  d["source_space"] = f.space;
+  d["frame_note"] = f.note;
+  d["warnings"] = warnings_list({}, run);
   return d;
 }
 
@@ -429,6 +441,7 @@ py::dict sample(const py::array& array, const py::object& origin, const py::obje
   d["curvature"] = scalars(res.curvature);
   d["converged"] = res.converged;
   d["iterations"] = res.iterations;
+  d["warnings"] = warnings_list({}, run);
   return d;
 }
 
@@ -437,7 +450,7 @@ py::dict mesh_surface(const py::array& array, const py::object& origin, const py
                       const std::string& stencil, std::size_t min_component, std::optional<double> radius,
                       int upsample, double eps, double delta, std::optional<double> spacing,
                       std::optional<double> hmin, bool morph, bool tighten, int decimate, double tolerance,
-                      int improve, std::uint64_t seed, int threads, py::object progress) {
+                      int improve, bool tetrahedra, std::uint64_t seed, int threads, py::object progress) {
   if (spacing && !(*spacing > 0)) throw py::value_error("spacing: " + num(*spacing) + "; expected > 0 (world units)");
   if (radius && !(*radius > 0)) throw py::value_error("radius: " + num(*radius) + "; expected > 0 (world units)");
   if (hmin && !(*hmin > 0)) throw py::value_error("hmin: " + num(*hmin) + "; expected > 0 (world units)");
@@ -463,9 +476,9 @@ py::dict mesh_surface(const py::array& array, const py::object& origin, const py
   const pm::SurfacePipelineResult r = run([&] { return pm::mesh_surface_pipeline(v, p, "array"); });
   py::dict d = mesh_dict(r.surface);
   d["particles"] = mesh_dict(r.particles);
-  d["tetrahedra"] = tets_dict(r.tets, 0);
+  if (tetrahedra) d["tetrahedra"] = tets_dict(r.tets, 0);
   d["kind"] = r.kind;
-  d["warnings"] = warnings_list(r.warnings);
+  d["warnings"] = warnings_list(r.warnings, run);
   d["seconds"] = seconds_dict(r.seconds);
   return d;
 }
@@ -474,8 +487,8 @@ py::dict mesh_materials(const py::array& labels, const py::object& origin, const
                         const py::object& directions, const std::string& merge, std::size_t min_voxels,
                         std::size_t pad, const std::string& pad_value, const std::string& morph_ops, int downsample,
                         double radius, int upsample, double eps, double delta, std::optional<double> hmin,
-                        std::optional<double> spacing, int decimate, int improve, std::uint64_t seed, int threads,
-                        py::object progress) {
+                        std::optional<double> spacing, int decimate, int improve, bool tetrahedra, std::uint64_t seed,
+                        int threads, py::object progress) {
   if (spacing && !(*spacing > 0)) throw py::value_error("spacing: " + num(*spacing) + "; expected > 0 (world units)");
   if (!(radius > 0)) throw py::value_error("radius: " + num(radius) + "; expected > 0 (world units)");
   if (hmin && !(*hmin >= 0)) throw py::value_error("hmin: " + num(*hmin) + "; expected >= 0 (world units)");
@@ -508,8 +521,8 @@ py::dict mesh_materials(const py::array& labels, const py::object& origin, const
   d["surfaces"] = surfaces;
   d["outside_label"] = r.meshes.outside_label;
   d["particles"] = mesh_dict(r.particles);
-  d["tetrahedra"] = tets_dict(r.meshes.tets, r.meshes.outside_label);
-  d["warnings"] = warnings_list(r.warnings);
+  if (tetrahedra) d["tetrahedra"] = tets_dict(r.meshes.tets, r.meshes.outside_label);
+  d["warnings"] = warnings_list(r.warnings, run);
   d["seconds"] = seconds_dict(r.seconds);
   return d;
 }
@@ -552,10 +565,10 @@ PYBIND11_MODULE(_core, m) {
         py::arg("directions"), py::arg("iso"), py::arg("labels"), py::arg("stencil"), py::arg("min_component"),
         py::arg("radius"), py::arg("upsample"), py::arg("eps"), py::arg("delta"), py::arg("spacing"),
         py::arg("hmin"), py::arg("morph"), py::arg("tighten"), py::arg("decimate"), py::arg("tolerance"),
-        py::arg("improve"), py::arg("seed"), py::arg("threads"), py::arg("progress"));
+        py::arg("improve"), py::arg("tetrahedra"), py::arg("seed"), py::arg("threads"), py::arg("progress"));
   m.def("mesh_materials", &mesh_materials, py::arg("labels"), py::arg("origin"), py::arg("voxel_spacing"),
         py::arg("directions"), py::arg("merge"), py::arg("min_voxels"), py::arg("pad"), py::arg("pad_value"),
         py::arg("morph_ops"), py::arg("downsample"), py::arg("radius"), py::arg("upsample"), py::arg("eps"),
         py::arg("delta"), py::arg("hmin"), py::arg("spacing"), py::arg("decimate"), py::arg("improve"),
-        py::arg("seed"), py::arg("threads"), py::arg("progress"));
+        py::arg("tetrahedra"), py::arg("seed"), py::arg("threads"), py::arg("progress"));
 }

@@ -14,6 +14,7 @@ std::string g_tool = "particlemesh";
 std::mutex g_mutex;
 ProgressHook g_progress_hook;
 CancelHook g_cancel_hook;
+WarningHook g_warning_hook;
 
 void emit(const std::string& msg) {
   std::lock_guard<std::mutex> lock(g_mutex);
@@ -34,11 +35,19 @@ void debug(const std::string& msg) {
   if (g_verbosity >= Verbosity::verbose) emit(msg);
 }
 void warn(const std::string& msg) {
+  {
+    std::lock_guard<std::mutex> lock(g_mutex);
+    if (g_warning_hook) g_warning_hook(msg);
+  }
   if (g_verbosity >= Verbosity::normal) emit("warning: " + msg);
 }
 
 void set_progress_hook(ProgressHook hook) { g_progress_hook = std::move(hook); }
 void set_cancel_hook(CancelHook hook) { g_cancel_hook = std::move(hook); }
+void set_warning_hook(WarningHook hook) {
+  std::lock_guard<std::mutex> lock(g_mutex);
+  g_warning_hook = std::move(hook);
+}
 
 void check_cancelled() {
   if (g_cancel_hook && g_cancel_hook()) throw Cancelled("cancelled");

@@ -16,6 +16,13 @@ spacing, radius and sizing value) are in the volume's world units: voxel
 origin, spacing and directions of a Volume from read_volume, or given as
 keywords with a bare array (default: origin 0, spacing 1, identity).
 
+World frame: LPS, as in the tools and libcore (x to the patient's left, y
+posterior, z superior; DICOM, ITK, MetaImage, 3D Slicer's files). read_volume
+converts every file into it (a NIfTI's RAS sform/qform has x and y negated,
+so its origin is -x, -y of nibabel's affine; Volume.ras_affine gives
+nibabel's), and every result (points, meshes) is in it. to_meshio(frame="ras")
+converts a result to RAS, as the tools' --frame ras does.
+
 Parameters, defaults and units are the tools' (see `particles --help`,
 Makefile.pipeline); errors are Python exceptions: bad values or bad data
 ValueError, unreadable files OSError. Long calls release the GIL (one call
@@ -42,14 +49,7 @@ __version__ = _core.version
 
 # --- volumes ------------------------------------------------------------------
 
-def _frame_of(path: str) -> str:
-    # libcore keeps world coordinates as the file stores them: NIfTI's are
-    # RAS+ (scanner/MNI), NRRD's are those of its "space" (usually LPS, the
-    # DICOM frame), MetaImage's usually LPS.
-    p = path.lower()
-    if p.endswith(".nii") or p.endswith(".nii.gz"):
-        return "RAS"
-    return "as stored"
+_LPS_TO_RAS = np.array([-1.0, -1.0, 1.0])
 
 
 @dataclass
@@ -60,38 +60,53 @@ class Volume:
     origin: world position of voxel (0, 0, 0), world units.
     spacing: voxel spacing of each axis, world units.
     directions: 3x3, column a = unit world direction of axis a.
-    frame: the world frame of the coordinates. libcore keeps them as the file
-        stores them (it does not convert between frames): "RAS" for NIfTI
-        (the file's sform/qform, RAS+), "as stored" for the other formats
-        (NRRD: its 'space', usually LPS).
+    frame: "LPS" (libcore's world frame: every reader converts into it, as
+        `volconv --info` reports), or "none" for a file without a world frame
+        (a NIfTI with qform_code = sform_code = 0: voxel index times pixdim;
+        INR and VDB files from elsewhere are taken as LPS, see frame_note).
+    source_format, source_space: the file's format and the frame it named,
+        e.g. "NIfTI", "RAS (sform, scanner_anat, mm)"; "" for arrays.
+    frame_note: one line when the coordinates are not anatomical, else "".
     """
 
     array: np.ndarray
     origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
     spacing: np.ndarray = field(default_factory=lambda: np.ones(3))
     directions: np.ndarray = field(default_factory=lambda: np.eye(3))
-    frame: str = "as stored"
+    frame: str = "LPS"
+    source_format: str = ""
+    source_space: str = ""
+    frame_note: str = ""
 
     @property
     def affine(self) -> np.ndarray:
-        """4x4 voxel-to-world matrix: world = affine @ (i, j, k, 1)."""
+        """4x4 voxel-to-world matrix (LPS): world = affine @ (i, j, k, 1)."""
         a = np.eye(4)
         a[:3, :3] = np.asarray(self.directions) * np.asarray(self.spacing)[None, :]
         a[:3, 3] = self.origin
         return a
 
+    @property
+    def ras_affine(self) -> np.ndarray:
+        """The same matrix in RAS (x and y negated), as nibabel's img.affine."""
+        return np.diag(np.append(_LPS_TO_RAS, 1.0)) @ self.affine
+
 
 def read_volume(path: Union[str, os.PathLike]) -> Volume:
-    """Read a volume file (.nrrd .nhdr .vdb .mha .mhd .nii .nii.gz .inr .inr.gz).
+    """Read a volume file (.nrrd .nhdr .vdb .mha .mhd .nii .nii.gz .inr .inr.gz), as the tools do.
 
-    Voxel values are returned raw in their stored type (NIfTI scl_slope is not
-    applied). Raises OSError for a missing or unreadable file, ValueError for a
-    malformed one.
+    Geometry in libcore's LPS world frame, mm where the file states units
+    (see Volume). Voxel values are returned raw in their stored type (NIfTI
+    scl_slope is not applied). Raises OSError for a missing or unreadable
+    file, ValueError for a malformed one; the reader's warnings (e.g. a NIfTI
+    without a frame) are RuntimeWarnings.
     """
     path = os.fspath(path)
     d = _core.read_volume(path)
+    _warn(d["warnings"])
     return Volume(array=d["array"], origin=np.array(d["origin"]), spacing=np.array(d["spacing"]),
-                  directions=np.array(d["directions"]), frame=_frame_of(path))
+                  directions=np.array(d["directions"]), frame=d["frame"], source_format=d["source_format"],
+                  source_space=d["source_space"], frame_note=d["frame_note"])
 
 
 def _grid(volume, origin, voxel_spacing, directions, arg):
@@ -169,6 +184,16 @@ def _meshio():
     return meshio
 
 
+def _in_frame(vectors, frame):
+    """N x 3 points or normals (LPS) in `frame`: "lps" as they are, "ras" with x and y negated."""
+    f = str(frame).lower()
+    if f == "lps":
+        return vectors
+    if f == "ras":
+        return None if vectors is None else np.asarray(vectors) * _LPS_TO_RAS
+    raise ValueError(f'frame: "{frame}" is unknown; expected lps or ras')
+
+
 @dataclass
 class Samples:
     """Particles on an isosurface: N x 3 points and unit normals (outward, grad F),
@@ -182,37 +207,43 @@ class Samples:
     converged: bool = True
     iterations: int = 0
 
-    def to_meshio(self):
-        """The points as a meshio.Mesh of vertex cells with normals and scalars."""
+    def to_meshio(self, frame: str = "lps"):
+        """The points as a meshio.Mesh of vertex cells with normals and scalars
+        (frame "lps", or "ras": x and y negated, as the tools' --frame)."""
         meshio = _meshio()
         n = len(self.points)
-        return meshio.Mesh(self.points, [("vertex", np.arange(n).reshape(-1, 1))],
-                           point_data={"normals": self.normals, "spacing": self.spacing, "energy": self.energy,
-                                       "curvature": self.curvature})
+        return meshio.Mesh(_in_frame(self.points, frame), [("vertex", np.arange(n).reshape(-1, 1))],
+                           point_data={"normals": _in_frame(self.normals, frame), "spacing": self.spacing,
+                                       "energy": self.energy, "curvature": self.curvature})
 
 
 @dataclass
 class Tetrahedra:
-    """Labelled Delaunay tetrahedra (what --tets writes): points N x 3, tets T x 4
-    (indices into points), labels T (1 inside for mesh_surface; the material
-    label for mesh_materials; the outside is left out)."""
+    """Labelled Delaunay tetrahedra (what tetlabel --tets writes): points N x 3
+    (world units, LPS), tets T x 4 (indices into points), labels T (1 inside
+    for mesh_surface; the material label for mesh_materials; the outside is
+    left out)."""
 
     points: np.ndarray
     tets: np.ndarray
     labels: np.ndarray
 
-    def to_meshio(self):
+    def to_meshio(self, frame: str = "lps"):
+        """A meshio.Mesh of "tetra" cells with the cell data "material" (as the tools' .vtu)."""
         meshio = _meshio()
-        return meshio.Mesh(self.points, [("tetra", self.tets)], cell_data={"label": [self.labels]})
+        return meshio.Mesh(_in_frame(self.points, frame), [("tetra", self.tets)],
+                           cell_data={"material": [self.labels]})
 
 
 @dataclass
 class SurfaceMesh:
     """mesh_surface's result: a closed, outward-oriented triangle mesh.
 
-    points V x 3 (world units), triangles F x 3, normals V x 3 (the particles'),
-    pairs F x 2 = (1, 0): the inside and outside label of every triangle, the
-    normal pointing from the first into the second (as in MaterialMesh).
+    points V x 3 (world units, LPS), triangles F x 3 (counter-clockwise seen
+    from outside), normals V x 3 (the particles'), pairs F x 2 = (1, 0): the
+    inside and outside label of every triangle, the normal pointing from the
+    first into the second (as in MaterialMesh). tetrahedra: the labelled
+    Delaunay tetrahedra when asked (tetrahedra=True), else None.
     """
 
     points: np.ndarray
@@ -220,16 +251,17 @@ class SurfaceMesh:
     normals: Optional[np.ndarray]
     pairs: np.ndarray
     particles: Samples
-    tetrahedra: Tetrahedra
+    tetrahedra: Optional[Tetrahedra] = None
     kind: str = "mask"
     warnings: List[str] = field(default_factory=list)
     seconds: Dict[str, float] = field(default_factory=dict)
 
-    def to_meshio(self):
-        """A meshio.Mesh of the triangles, cell data label_a/label_b, point data normals."""
+    def to_meshio(self, frame: str = "lps"):
+        """A meshio.Mesh of the triangles, cell data label_a/label_b, point data normals
+        (frame "lps", or "ras": x and y negated, as the tools' --frame)."""
         meshio = _meshio()
-        pd = {} if self.normals is None else {"normals": self.normals}
-        return meshio.Mesh(self.points, [("triangle", self.triangles)], point_data=pd,
+        pd = {} if self.normals is None else {"normals": _in_frame(self.normals, frame)}
+        return meshio.Mesh(_in_frame(self.points, frame), [("triangle", self.triangles)], point_data=pd,
                            cell_data={"label_a": [self.pairs[:, 0]], "label_b": [self.pairs[:, 1]]})
 
 
@@ -237,11 +269,13 @@ class SurfaceMesh:
 class MaterialMesh:
     """mesh_materials' result: the interfaces between materials.
 
-    points V x 3, triangles F x 3, pairs F x 2 = (label_a, label_b) with
+    points V x 3 (world units, LPS), triangles F x 3, pairs F x 2 = (label_a, label_b) with
     label_a < label_b and the normal pointing from label_a into label_b;
     label_pairs: the distinct pairs; surfaces: label -> (points, triangles) of
     each material's closed surface (outward); outside_label: the material
-    outside the volume (the background).
+    outside the volume (the background); tetrahedra: the Delaunay
+    tetrahedra labelled by material (outside left out) when asked
+    (tetrahedra=True), else None.
     """
 
     points: np.ndarray
@@ -251,14 +285,15 @@ class MaterialMesh:
     surfaces: Dict[int, Tuple[np.ndarray, np.ndarray]]
     outside_label: int
     particles: Dict[str, np.ndarray]
-    tetrahedra: Tetrahedra
+    tetrahedra: Optional[Tetrahedra] = None
     warnings: List[str] = field(default_factory=list)
     seconds: Dict[str, float] = field(default_factory=dict)
 
-    def to_meshio(self):
-        """A meshio.Mesh of the interface triangles, cell data label_a/label_b."""
+    def to_meshio(self, frame: str = "lps"):
+        """A meshio.Mesh of the interface triangles, cell data label_a/label_b
+        (frame "lps", or "ras": x and y negated, as the tools' --frame)."""
         meshio = _meshio()
-        return meshio.Mesh(self.points, [("triangle", self.triangles)],
+        return meshio.Mesh(_in_frame(self.points, frame), [("triangle", self.triangles)],
                            cell_data={"label_a": [self.pairs[:, 0]], "label_b": [self.pairs[:, 1]]})
 
 
@@ -273,7 +308,9 @@ def _particles_of(d) -> Samples:
                    curvature=pd["curvature"])
 
 
-def _tets(d) -> Tetrahedra:
+def _tets(d) -> Optional[Tetrahedra]:
+    if d is None:
+        return None
     return Tetrahedra(points=d["points"], tets=d["tets"], labels=d["labels"])
 
 
@@ -312,8 +349,10 @@ def sample(volume, *, iso: float = 0.0, spacing: Optional[float] = None, density
              float(population_tolerance), bool(population), int(max_iters), coarse_to_fine, float(coarse_start),
              int(seed), int(threads))
     out = _samples(r)
+    ws = list(r["warnings"])
     if not out.converged:
-        _warn([f"particles: not converged after {out.iterations} iterations (max_iters {max_iters} per level)"])
+        ws.append(f"particles: not converged after {out.iterations} iterations (max_iters {max_iters} per level)")
+    _warn(ws)
     return out
 
 
@@ -321,7 +360,8 @@ def mesh_surface(volume, *, iso: Optional[float] = None, labels: Optional[Sequen
                  stencil: str = "ball", min_component: int = 0, radius: Optional[float] = None,
                  upsample: int = 1, eps: float = 0.5, delta: float = 0.05, spacing: Optional[float] = None,
                  hmin: Optional[float] = None, morph: bool = False, tighten: bool = False, decimate: int = 4,
-                 tolerance: float = 1e-4, improve: int = 3, seed: int = 1, threads: int = 0, origin=None,
+                 tolerance: float = 1e-4, improve: int = 3, tetrahedra: bool = False, seed: int = 1,
+                 threads: int = 0, origin=None,
                  voxel_spacing=None, directions=None, progress=None) -> SurfaceMesh:
     """The Chapter 5 pipeline (`make -f Makefile.pipeline ch5`) on a volume.
 
@@ -333,7 +373,9 @@ def mesh_surface(volume, *, iso: Optional[float] = None, labels: Optional[Sequen
     default half the smallest spacing) -> gradient limit (delta) -> marching
     cubes seeds (decimate) -> particles (tolerance; or a uniform `spacing`)
     -> labelled Delaunay tetrahedra -> `improve` rounds. Keywords are the
-    Makefile's variables in lower case, same defaults and units.
+    Makefile's variables in lower case, same defaults and units (world
+    units, LPS); tetrahedra=True also returns the inside tetrahedra (the
+    Makefile's volume.mesh).
     """
     arr, o, s, d = _grid(volume, origin, voxel_spacing, directions, "array")
     if arr.dtype == np.bool_:
@@ -341,11 +383,11 @@ def mesh_surface(volume, *, iso: Optional[float] = None, labels: Optional[Sequen
     labels = [] if labels is None else [int(x) for x in labels]
     r = _run(_core.mesh_surface, progress, arr, o, s, d, None if iso is None else float(iso), labels, stencil,
              int(min_component), radius, int(upsample), float(eps), float(delta), spacing, hmin, bool(morph),
-             bool(tighten), int(decimate), float(tolerance), int(improve), int(seed), int(threads))
+             bool(tighten), int(decimate), float(tolerance), int(improve), bool(tetrahedra), int(seed), int(threads))
     nf = len(r["triangles"])
     pairs = np.tile(np.array([[1, 0]], dtype=np.int64), (nf, 1))
     out = SurfaceMesh(points=r["points"], triangles=r["triangles"], normals=r.get("normals"), pairs=pairs,
-                      particles=_particles_of(r["particles"]), tetrahedra=_tets(r["tetrahedra"]), kind=r["kind"],
+                      particles=_particles_of(r["particles"]), tetrahedra=_tets(r.get("tetrahedra")), kind=r["kind"],
                       warnings=list(r["warnings"]), seconds=dict(r["seconds"]))
     _warn(out.warnings)
     return out
@@ -355,7 +397,8 @@ def mesh_materials(labels, *, merge: Optional[str] = None, min_voxels: int = 0, 
                    pad_value: Union[str, int] = "new", morph_ops: str = "close:ball,open:ball", downsample: int = 1,
                    radius: float = 1.0, upsample: int = 1, eps: float = 0.5, delta: float = 0.4,
                    hmin: Optional[float] = None, spacing: Optional[float] = None, decimate: int = 2,
-                   improve: int = 3, seed: int = 1, threads: int = 0, origin=None, voxel_spacing=None,
+                   improve: int = 3, tetrahedra: bool = False, seed: int = 1, threads: int = 0, origin=None,
+                   voxel_spacing=None,
                    directions=None, progress=None) -> MaterialMesh:
     """The Chapter 6 pipeline (`make -f Makefile.pipeline ch6`) on a label map.
 
@@ -366,14 +409,16 @@ def mesh_materials(labels, *, merge: Optional[str] = None, min_voxels: int = 0, 
     (eps, hmin default radius) -> gradient limit (delta) -> junction seeds
     (decimate) -> multi-material particles (or a uniform `spacing`) ->
     labelled Delaunay tetrahedra -> `improve` rounds on the interfaces.
-    Keywords are Makefile.ch6's variables in lower case, same defaults.
+    Keywords are Makefile.ch6's variables in lower case, same defaults
+    (world units, LPS); tetrahedra=True also returns the tetrahedra labelled
+    by material (the Makefile's volume.mesh).
     """
     arr, o, s, d = _grid(labels, origin, voxel_spacing, directions, "labels")
     if arr.dtype == np.bool_:
         arr = arr.astype(np.uint8)
     r = _run(_core.mesh_materials, progress, arr, o, s, d, merge or "", int(min_voxels), int(pad), str(pad_value),
              morph_ops, int(downsample), float(radius), int(upsample), float(eps), float(delta), hmin, spacing,
-             int(decimate), int(improve), int(seed), int(threads))
+             int(decimate), int(improve), bool(tetrahedra), int(seed), int(threads))
     cd = r["cell_data"]
     pairs = np.stack([cd["label_a"], cd["label_b"]], axis=1) if len(r["triangles"]) else np.zeros((0, 2), np.int64)
     surfaces = {int(l): (m["points"], m["triangles"]) for l, m in r["surfaces"].items()}
@@ -384,6 +429,7 @@ def mesh_materials(labels, *, merge: Optional[str] = None, min_voxels: int = 0, 
     out = MaterialMesh(points=r["points"], triangles=r["triangles"], pairs=pairs,
                        label_pairs=[tuple(x) for x in r["label_pairs"]], surfaces=surfaces,
                        outside_label=int(r["outside_label"]), particles=particles,
-                       tetrahedra=_tets(r["tetrahedra"]), warnings=list(r["warnings"]), seconds=dict(r["seconds"]))
+                       tetrahedra=_tets(r.get("tetrahedra")), warnings=list(r["warnings"]),
+                       seconds=dict(r["seconds"]))
     _warn(out.warnings)
     return out

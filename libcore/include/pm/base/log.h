@@ -22,7 +22,7 @@ void debug(const std::string& msg);
 /// A warning on stderr unless -q.
 void warn(const std::string& msg);
 
-/// Front-end hooks (the Python module; tools set none). Both are global, for
+/// Front-end hooks (the Python module; tools set none). All are global, for
 /// one run at a time, and called only from the thread running the long loop
 /// (never from inside pm::parallel_for), so a hook may take a lock such as
 /// Python's GIL.
@@ -34,6 +34,11 @@ void set_progress_hook(ProgressHook hook);
 /// Cancel hook: returns true when the run should stop.
 using CancelHook = std::function<bool()>;
 void set_cancel_hook(CancelHook hook);
+/// Warning hook: when set, every pm::warn also goes to it, whatever the
+/// verbosity (the Python module turns them into Python warnings). Called
+/// under the log's lock, from any thread: it must not block.
+using WarningHook = std::function<void(const std::string& msg)>;
+void set_warning_hook(WarningHook hook);
 /// Called by long loops once per iteration or stage (particle relaxation,
 /// tightening flow steps, every ScopedStage): \throw Cancelled when the
 /// cancel hook returns true. One empty-function test when no hook is set.
