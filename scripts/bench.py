@@ -134,6 +134,13 @@ def case_particles():
             upd = st2.get("particle_updates")
             if upd:
                 row("particles", "particle updates per second (2 threads)", round(upd / dt2 / 1e6, 2), "M/s")
+            eng = st2.get("engine", {})
+            if eng.get("trials"):  # issue #16: the engine's own counters (CPU-based: the machine may be shared)
+                row("particles", "engine: updates per CPU second (2 threads)",
+                    round(eng["updates"] / max(st2.get("cpu", 0), 1e-9) / 1e6, 3), "M/s",
+                    note=f"{eng['updates'] / max(n, 1):.1f} updates/particle, {eng['trials'] / eng['updates']:.2f} "
+                    f"trials/update, {eng['rejected_trials'] / eng['trials']:.0%} rejected, "
+                    f"{eng['field_evaluations'] / eng['updates']:.2f} field evaluations/update")
             st3, dt3 = particles_stats(["-i", brain, "--iso", "0.5", "--spacing", "1.0", "-o", out], threads=2)
             row("particles", "~100k particles on a volume surface", round(dt3, 2), "s", "< 60 s",
                 dt3 < 60, f"{st3.get('particles')} particles, {st3.get('iterations')} iterations, "
@@ -146,7 +153,7 @@ def stage_rows(case, out, stages, digits):
     """One row per pipeline stage with the total seconds of its --stats JSON in `out`; returns their sum."""
     total = 0.0
     for stage in stages:
-        p = os.path.join(out, f"{stage}.json")
+        p = os.path.join(out, "work", f"{stage}.json")
         if os.path.exists(p):
             t = json.load(open(p))["seconds"]["total"]
             total += t
@@ -155,7 +162,7 @@ def stage_rows(case, out, stages, digits):
 
 
 def case_ch5():
-    """Whole Chapter 5 pipeline on the 256^3 brain mask (Makefile.pipeline ch5, 2 threads), per-stage
+    """Whole Chapter 5 pipeline on the 256^3 brain mask (Makefile.pipeline surface, 2 threads), per-stage
     times from the stages' --stats JSON, and CGAL Mesh_3 (baseline cgal) on the same field at the same
     vertex count."""
     brain = os.path.join(SHARED, "iso2mesh-head", "derived", "brain.nrrd")
@@ -166,8 +173,8 @@ def case_ch5():
     eps = os.environ.get("PM_BENCH_CH5_EPS", "0.27")
     with tempfile.TemporaryDirectory() as tmp:
         out = os.path.join(tmp, "brain")
-        _, wall = run(["make", "-s", "-f", os.path.join(ROOT, "Makefile.pipeline"), "ch5", f"INPUT={brain}",
-                       f"OUT={out}", f"BIN={BIN}", "THREADS=2", "FLAGS=-q", f"EPS={eps}"])
+        _, wall = run(["make", "-s", "-f", os.path.join(ROOT, "Makefile.pipeline"), "surface", f"INPUT={brain}",
+                       f"OUT={out}", f"BIN={BIN}", "THREADS=2", "QUIET=1", f"EPS={eps}"])
         q = json.load(open(os.path.join(out, "quality.json")))
         n = q["vertices"]
         total = stage_rows("ch5", out, ("morph", "tighten", "medialaxis", "sizingfield", "gradlimit", "mcinit",
@@ -181,7 +188,7 @@ def case_ch5():
         row("ch5", "our mesh valence 6", round(100 * q["valence"]["share_6"], 1), "%", ">= 65",
             q["valence"]["share_6"] >= 0.65)
         cg = os.path.join(out, "cgal.json")
-        run([os.path.join(BIN, "baseline"), "cgal", "-i", os.path.join(out, "sdf.nrrd"), "--iso", "0",
+        run([os.path.join(BIN, "baseline"), "cgal", "-i", os.path.join(out, "work", "sdf.nrrd"), "--iso", "0",
              "--vertices", str(n), "-o", os.path.join(out, "cgal.ply"), "--stats", cg, "-q", "--threads", "2"])
         c = json.load(open(cg))
         row("ch5", "CGAL Mesh_3, same field and vertex count (2 threads)", round(c["seconds_final_run"], 1), "s",
@@ -286,7 +293,7 @@ CASES["voltools"] = case_voltools
 
 
 def case_ch6():
-    """Issue 6: the 5-material frog end to end (Makefile.pipeline ch6 as scripts/results_ch6.py runs it,
+    """Issue 6: the 5-material frog end to end (Makefile.pipeline materials as scripts/results_ch6.py runs it,
     2 threads) in < 10 minutes, with per-stage times and CGAL Mesh_3's labelled-image mesher on the same
     cleaned label map at about the same vertex count."""
     frog = os.path.join(SHARED, "vtk-frogtissue", "derived", "frogtissue.nrrd")
@@ -296,8 +303,8 @@ def case_ch6():
     merge = "13:1 11:2 1,6:3 2,3,4,5,7,8,9,10,12,14,15:4"  # as results_ch6.py's FROG5
     with tempfile.TemporaryDirectory() as tmp:
         out = os.path.join(tmp, "frog5")
-        _, wall = run(["make", "-s", "-f", os.path.join(ROOT, "Makefile.pipeline"), "ch6", f"INPUT={frog}",
-                       f"OUT={out}", f"BIN={BIN}", "THREADS=2", "FLAGS=-q", "R=2", "DOWNSAMPLE=2",
+        _, wall = run(["make", "-s", "-f", os.path.join(ROOT, "Makefile.pipeline"), "materials", f"INPUT={frog}",
+                       f"OUT={out}", f"BIN={BIN}", "THREADS=2", "QUIET=1", "R=2", "DOWNSAMPLE=2",
                        "MIN_VOXELS=300", f"MERGE={merge}", "PAD=3", "PAD_VALUE=0"])
         total = stage_rows("ch6", out, ("volconv", "morph", "tighten", "sizingfield", "gradlimit", "mcinit",
                                         "multiparticles", "tetlabel"), 1)
@@ -306,7 +313,7 @@ def case_ch6():
         row("ch6", "frog, 5 materials, label map to meshes", round(wall, 1), "s", "< 600 s", wall < 600,
             f"make wall incl. medialaxis, meshstats, renders; stages with --stats sum to {total:.1f} s; {n} vertices")
         cg = os.path.join(out, "cgal.json")
-        _, ct = run([os.path.join(BIN, "baseline"), "cgal-labels", "-i", os.path.join(out, "morph.nrrd"),
+        _, ct = run([os.path.join(BIN, "baseline"), "cgal-labels", "-i", os.path.join(out, "work", "morph.nrrd"),
                      "--vertices", str(n), "-o", os.path.join(out, "cgal.ply"), "--stats", cg, "-q",
                      "--threads", "2"])
         row("ch6", "CGAL Mesh_3 labelled image, same label map and vertex count", round(ct, 1), "s",

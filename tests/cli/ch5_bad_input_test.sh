@@ -12,7 +12,7 @@ expect() {  # expect CODE REGEX cmd...
   [ $rc -eq "$code" ] || { echo "expected exit $code, got $rc: $*: $msg"; exit 1; }
   echo "$msg" | grep -Eq "$re" || { echo "unexpected message for $*: $msg"; exit 1; }
 }
-MK=(make -s -f "$SRC/Makefile.pipeline" ch5 BIN="$BIN")
+MK=(make -s -f "$SRC/Makefile.pipeline" surface BIN="$BIN")
 # make exits 2 when a recipe fails; the message is the pipeline's.
 expect 2 "has the value 0 everywhere \(an empty or all-inside volume\): no surface to mesh" \
   "${MK[@]}" INPUT="$SRC/tests/data/empty_mask.nrrd" OUT="$T/empty"

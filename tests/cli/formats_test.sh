@@ -58,9 +58,9 @@ ref = meshio.read(f"{T}/if.ply")
 assert ref.points.shape == (NV, 3) and tris(ref).shape == (NF, 3), (ref, NV, NF)
 la = np.concatenate(ref.cell_data["label_a"]); lb = np.concatenate(ref.cell_data["label_b"])
 assert sorted(set(zip(la.tolist(), lb.tolist()))) == [(0, 1), (0, 2), (1, 2)], set(zip(la, lb))
-# Debian's meshio 1.x reads legacy .vtk only as UNSTRUCTURED_GRID, and ours is
-# POLYDATA (what Slicer and ParaView expect): .vtk is judged by VTK's own reader below.
-for ext in ("mesh", "obj", "off", "stl"):
+# Legacy .vtk surfaces are UNSTRUCTURED_GRIDs of triangles (meshio reads no legacy
+# POLYDATA); VTK's own reader (ParaView, Slicer) judges them below as well.
+for ext in ("vtk", "mesh", "obj", "off", "stl"):
     m = meshio.read(f"{T}/if.{ext}")
     t = tris(m)
     assert t.shape == (NF, 3), (ext, t.shape)
@@ -69,7 +69,7 @@ for ext in ("mesh", "obj", "off", "stl"):
         assert m.points.shape[0] == NV, (ext, m.points.shape)
         assert np.abs(m.points - ref.points).max() < 1e-5, ext  # PLY is float
     if ext == "vtk":
-        assert (np.concatenate(m.cell_data["label_a"]) == la).all() and (np.concatenate(m.cell_data["label_b"]) == lb).all()
+        assert (np.concatenate(m.cell_data["label_a"]).reshape(-1) == la).all() and (np.concatenate(m.cell_data["label_b"]).reshape(-1) == lb).all()
     if ext == "mesh":
         refs = np.concatenate(m.cell_data["medit:ref"])
         pair_id = {(0, 1): 1, (0, 2): 2, (1, 2): 3}
@@ -82,13 +82,19 @@ assert (vtk_to_numpy(pd.GetCellData().GetArray("label_a")) == la).all()
 assert (vtk_to_numpy(pd.GetCellData().GetArray("label_b")) == lb).all()
 assert np.abs(vtk_to_numpy(pd.GetPoints().GetData()) - ref.points).max() < 1e-5
 assert pd.GetFieldData().GetAbstractArray("SPACE").GetValue(0) == "LPS"
-r = vtk.vtkPolyDataReader(); r.SetFileName(f"{T}/if.vtk"); r.Update()
-assert "SPACE=LPS" in r.GetHeader() and r.GetOutput().GetNumberOfPolys() == NF
+r = vtk.vtkUnstructuredGridReader(); r.SetFileName(f"{T}/if.vtk"); r.Update(); ug = r.GetOutput()
+assert "SPACE=LPS" in r.GetHeader() and ug.GetNumberOfCells() == NF, ug.GetNumberOfCells()
+assert (vtk_to_numpy(ug.GetCellTypesArray()) == vtk.VTK_TRIANGLE).all()
+assert (vtk_to_numpy(ug.GetCellData().GetArray("label_a")) == la).all()
 
 # Point sets: the seeds with their scalars in every point format.
 s = meshio.read(f"{T}/seeds.ply")
 for name in ("junction", "label_a", "label_b"):
     assert name in s.point_data, s.point_data.keys()
+sv = meshio.read(f"{T}/seeds.vtk")  # VTK_VERTEX cells
+assert sv.points.shape == s.points.shape and np.abs(sv.points - s.points).max() < 1e-5
+assert sum(len(b.data) for b in sv.cells if b.type == "vertex") == s.points.shape[0]
+assert (sv.point_data["junction"].reshape(-1) == s.point_data["junction"].reshape(-1)).all()
 r = vtk.vtkXMLPolyDataReader(); r.SetFileName(f"{T}/seeds.vtp"); r.Update(); sp = r.GetOutput()
 assert sp.GetNumberOfPoints() == s.points.shape[0] and sp.GetNumberOfVerts() == s.points.shape[0]
 assert (vtk_to_numpy(sp.GetPointData().GetArray("junction")) == s.point_data["junction"]).all()

@@ -62,8 +62,9 @@ TEST_P(VtkRoundTrip, KeepsEveryPropertyExactly) {
   write_mesh(m, path, {GetParam()});
   const std::string text = slurp(path);
   EXPECT_EQ(text.rfind("# vtk DataFile Version 4.2\nparticlemesh", 0), 0u);
-  EXPECT_NE(text.find("SPACE=LPS\n" + std::string(GetParam() ? "BINARY" : "ASCII") + "\nDATASET POLYDATA\n"),
+  EXPECT_NE(text.find("SPACE=LPS\n" + std::string(GetParam() ? "BINARY" : "ASCII") + "\nDATASET UNSTRUCTURED_GRID\n"),
             std::string::npos);
+  EXPECT_NE(text.find("CELL_TYPES 4\n"), std::string::npos);
   EXPECT_NE(text.find("CELL_DATA 4\nSCALARS label_a int 1"), std::string::npos);
   expect_same(read_mesh(path), m);
 }
@@ -76,8 +77,28 @@ TEST(Vtk, PointSetIsWrittenAsVertices) {
   m.vertex_scalars["junction"] = {1, 2, 3};
   const std::string path = test::temp_dir() + "/p.vtk";
   write_mesh(m, path, {false});
-  EXPECT_NE(slurp(path).find("VERTICES 3 6\n"), std::string::npos);
+  EXPECT_NE(slurp(path).find("CELLS 3 6\n1 0\n1 1\n1 2\nCELL_TYPES 3\n1\n1\n1\n"), std::string::npos);
   expect_same(read_mesh(path), m);
+}
+
+TEST(Vtk, ReadsPolydataAndRefusesTetrahedra) {
+  // Legacy POLYDATA (as other programs write surfaces) reads as before; an
+  // UNSTRUCTURED_GRID of tetrahedra is refused by cell.
+  const std::string path = test::temp_dir() + "/pd.vtk";
+  std::ofstream(path) << "# vtk DataFile Version 4.2\nx\nASCII\nDATASET POLYDATA\nPOINTS 4 double\n"
+                         "0 0 0 1 0 0 0 1 0 1 1 0\nPOLYGONS 1 5\n4 0 1 3 2\nCELL_DATA 1\nSCALARS label_a int 1\n"
+                         "LOOKUP_TABLE default\n7\n";
+  const Mesh q = read_mesh(path);
+  ASSERT_EQ(q.faces.size(), 2u);  // the quad fan-triangulated
+  EXPECT_EQ(q.face_ints.at("label_a"), (std::vector<int>{7, 7}));
+  std::ofstream(path) << "# vtk DataFile Version 4.2\nx\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 4 double\n"
+                         "0 0 0 1 0 0 0 1 0 0 0 1\nCELLS 1 5\n4 0 1 2 3\nCELL_TYPES 1\n10\n";
+  try {
+    read_mesh(path);
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("CELL_TYPES cell 0: type 10 with 4 vertices"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Vtk, ReaderNamesWhatItDoesNotRead) {
@@ -87,7 +108,7 @@ TEST(Vtk, ReaderNamesWhatItDoesNotRead) {
     read_mesh(path);
     FAIL() << "expected InputError";
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("expected POLYDATA"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("expected POLYDATA or UNSTRUCTURED_GRID"), std::string::npos) << e.what();
   }
   std::ofstream(path) << "# vtk DataFile Version 4.2\nx\nASCII\nDATASET POLYDATA\nPOINTS 1000 double\n0 0 0\n";
   EXPECT_THROW(read_mesh(path), InputError);  // counts beyond the file

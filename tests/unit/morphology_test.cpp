@@ -172,12 +172,18 @@ TEST(Morphology, LabelsOpeningLeavesEmptyVoxelsForVoting) {
   EXPECT_EQ(r.vote_rounds, 1u);
   // Processing 0 as a material: the background is a 1-voxel shell along the
   // volume border (outside counts as background, i.e. in no mask), so opening
-  // removes all of it and voting hands it to the boxes.
+  // removes all of it; a material is never erased, so the shell keeps its input
+  // voxels (a warning's worth: listed in `kept`) and only the spike is voted.
   p.labels = {0, 1, 2};
   r = morph_labels(v, p);
   EXPECT_EQ(r.labels.get(11, 5, 5), 2);
-  EXPECT_EQ(r.counts_after.count(0), 0u);
-  EXPECT_EQ(r.empty, 24u * 12u * 12u - 22u * 10u * 10u + 1u);
+  const std::size_t shell = 24u * 12u * 12u - 22u * 10u * 10u;
+  EXPECT_EQ(r.counts_after.at(0), shell);
+  EXPECT_EQ(r.empty, 1u);
+  ASSERT_EQ(r.kept.size(), 1u);
+  EXPECT_EQ(r.kept[0].label, 0);
+  EXPECT_EQ(r.kept[0].stage, "morphology");
+  EXPECT_EQ(r.kept[0].voxels, shell);
   p.labels = {7};
   EXPECT_THROW(morph_labels(v, p), InputError);
 }
@@ -291,6 +297,61 @@ TEST(Morphology, DownsampleMajorityAndMean) {
   const LabelMorphResult r = morph_labels(v, p);
   EXPECT_EQ(r.labels.get(0, 0, 0), 3);
   EXPECT_EQ(r.labels.dims(), (Dims{2, 2, 3}));
+}
+
+TEST(Morphology, NeverErasesAMaterial) {
+  // 2x2x2, five labels: 0 on four voxels, 1..4 one voxel each. Closing then opening
+  // with the ball erases every one of them; each keeps its input voxels instead.
+  Volume v(VoxelType::u8, Dims{2, 2, 2});
+  for (std::size_t i = 0; i < 4; ++i) v.set(4 + i, std::uint8_t(1 + i));
+  LabelMorphParams p;
+  p.steps = parse_morph_steps("close:ball,open:ball");
+  p.labels = {0, 1, 2, 3, 4};
+  p.vote = true;
+  LabelMorphResult r = morph_labels(v, p);
+  ASSERT_EQ(r.kept.size(), 5u);
+  for (std::size_t i = 0; i < v.count(); ++i) EXPECT_EQ(r.labels.get(i), v.get(i)) << "voxel " << i;
+  EXPECT_EQ(r.kept[0].voxels, 4u);
+  EXPECT_EQ(r.kept[4].label, 4);
+  EXPECT_EQ(r.kept[4].voxels, 1u);
+  EXPECT_TRUE(r.lost.empty());
+
+  // Downsampling 2x to one voxel cannot keep five labels: the majority 0 stays,
+  // the four others are reported lost (not silently gone).
+  p.downsample = 2;
+  r = morph_labels(v, p);
+  EXPECT_EQ(r.labels.count(), 1u);
+  EXPECT_EQ(r.labels.get(0), 0);
+  EXPECT_EQ(r.lost, (std::vector<std::int64_t>{1, 2, 3, 4}));
+
+  // A one-voxel material in a 4^3 background: downsampling by 2 would outvote it; it
+  // takes its own block instead.
+  Volume speck(VoxelType::u8, Dims{4, 4, 4});
+  speck.set(3, 2, 1, 7);
+  LabelMorphParams d;
+  d.downsample = 2;
+  r = morph_labels(speck, d);
+  EXPECT_EQ(r.labels.get(1, 1, 0), 7);
+  EXPECT_EQ(r.counts_after.at(7), 1u);
+  ASSERT_EQ(r.kept.size(), 1u);
+  EXPECT_EQ(r.kept[0].stage, "downsample");
+
+  // Every component of label 2 below --min-component: its largest stays.
+  Volume comps = box(10, 1, 7);
+  comps.set(8, 8, 8, 2);
+  comps.set(8, 8, 7, 2);
+  comps.set(8, 1, 1, 2);
+  LabelMorphParams c;
+  c.min_component = 5;
+  r = morph_labels(comps, c);
+  EXPECT_EQ(r.labels.get(8, 8, 8), 2);
+  EXPECT_EQ(r.labels.get(8, 8, 7), 2);
+  EXPECT_NE(r.labels.get(8, 1, 1), 2);
+  EXPECT_EQ(r.components_removed, 1u);
+  ASSERT_EQ(r.kept.size(), 1u);
+  EXPECT_EQ(r.kept[0].label, 2);
+  EXPECT_EQ(r.kept[0].stage, "min_component");
+  EXPECT_EQ(r.kept[0].voxels, 2u);
 }
 
 }  // namespace

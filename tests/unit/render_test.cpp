@@ -205,6 +205,81 @@ TEST(Render, DeterministicAndMeanSpacingIsRight) {
   EXPECT_EQ(mean_nearest_neighbor_distance({{1, 2, 3}}), 0.0);
 }
 
+// Interface mesh of two nested axis-aligned cubes (half sides 2 and 1), outward
+// winding: the outer one separates 0|1 (pair 0), the inner one 1|2 (pair 1).
+Mesh nested_cubes() {
+  Mesh m;
+  const int quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  for (int c = 0; c < 2; ++c) {
+    const double h = c == 0 ? 2 : 1;
+    const int off = int(m.vertices.size());
+    for (int k = 0; k < 8; ++k) m.vertices.push_back({k & 1 ? h : -h, k & 2 ? h : -h, k & 4 ? h : -h});
+    for (const auto& q : quads) {
+      m.faces.push_back({off + q[0], off + q[1], off + q[2]});
+      m.faces.push_back({off + q[0], off + q[2], off + q[3]});
+      for (int t = 0; t < 2; ++t) {
+        m.face_ints["label_a"].push_back(c);
+        m.face_ints["label_b"].push_back(c + 1);
+        m.face_ints["pair"].push_back(c);
+      }
+    }
+  }
+  return m;
+}
+
+// Pixels (outside the top-left legend corner) whose colour is a shade k * c of c.
+std::size_t pixels_of_shade(const Image& img, const Vec3& c) {
+  std::size_t n = 0;
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x) {
+      if (x < 80 && y < 40) continue;
+      const std::uint8_t* p = img.at(x, y);
+      const Vec3 v{p[0] / 255.0, p[1] / 255.0, p[2] / 255.0};
+      const double k = dot(v, c) / dot(c, c);
+      n += k > 0.2 && norm(v - c * k) < 0.02;
+    }
+  return n;
+}
+
+TEST(Render, LegendNamesEachPairAndClipShowsTheInside) {
+  const Mesh m = nested_cubes();
+  RenderParams p;
+  p.width = p.height = 400;
+  p.color_by = "pair";
+  const Vec3 outer = category_color(0), inner = category_color(1);
+  const Image plain = render(m, p);
+  EXPECT_GT(pixels_of_shade(plain, outer), 1000u);
+  EXPECT_EQ(pixels_of_shade(plain, inner), 0u);  // the inner cube is hidden
+
+  p.legend = true;
+  const Image key = render(m, p);
+  // Swatches at (4, 4) and (4, 14), 8x7 pixels, in the flat pair colours; text "0-1" then "1-2"
+  // to their right: the top row of the glyph '0' is set in columns 1-3 (pixel x 16).
+  auto is = [&](int x, int y, const Vec3& c) {
+    const std::uint8_t* q = key.at(x, y);
+    for (int k = 0; k < 3; ++k)
+      if (q[k] != std::lround(255 * c[k])) return false;
+    return true;
+  };
+  EXPECT_TRUE(is(6, 6, outer));
+  EXPECT_TRUE(is(6, 16, inner));
+  EXPECT_FALSE(is_background(key, 16, 4));
+  EXPECT_TRUE(is_background(key, 15, 4));
+  EXPECT_FALSE(is_background(key, 17, 14));  // '1' of "1-2": 0x04, column 2 (x 17)
+
+  p.legend = false;
+  p.clip = "x";
+  const Image cut = render(m, p);
+  EXPECT_GT(pixels_of_shade(cut, inner), 500u);  // the inner cube shows through the cut
+  EXPECT_GT(pixels_of_shade(cut, outer), 500u);
+  p.clip = "x:1";  // the plane at the box's far end on the camera's side: nothing cut
+  EXPECT_EQ(pixels_of_shade(render(m, p), inner), 0u);
+  p.clip = "w";
+  EXPECT_THROW(render(m, p), UsageError);
+  p.clip = "x:2";
+  EXPECT_THROW(render(m, p), UsageError);
+}
+
 TEST(Render, BadInput) {
   Mesh empty;
   EXPECT_THROW(render(empty, {}), InputError);

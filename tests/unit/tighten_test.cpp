@@ -59,6 +59,31 @@ double max_curvature(const Volume& d) {
   return worst;
 }
 
+TEST(Tighten, DefaultsFromTheHeader) {
+  // Anisotropic CT voxels: the radius is the largest spacing, no upsampling.
+  const Volume ct(VoxelType::u8, Dims{20, 20, 10}, Geometry::with_spacing(0.62, 0.62, 1.33));
+  TightenDefaults d = tighten_defaults(ct, 0, 0);
+  EXPECT_DOUBLE_EQ(d.radius, 1.33);
+  EXPECT_EQ(d.upsample, 1);
+  // A 2x2x2 label map: upsampled 8 times (16 / 2, capped at 8), radius one fine voxel.
+  const Volume tiny(VoxelType::u8, Dims{2, 2, 2});
+  d = tighten_defaults(tiny, 0, 0);
+  EXPECT_EQ(d.upsample, 8);
+  EXPECT_DOUBLE_EQ(d.radius, 0.125);
+  // Thin along one axis (4 voxels of 2 mm): K = 16 / 4 = 4, radius 2 / 4.
+  const Volume slab(VoxelType::u8, Dims{4, 30, 30}, Geometry::with_spacing(2, 2, 2));
+  d = tighten_defaults(slab, 0, 0);
+  EXPECT_EQ(d.upsample, 4);
+  EXPECT_DOUBLE_EQ(d.radius, 0.5);
+  // Given values stay; a given K does not divide the automatic radius.
+  d = tighten_defaults(tiny, 3, 0);
+  EXPECT_DOUBLE_EQ(d.radius, 3);
+  EXPECT_EQ(d.upsample, 8);
+  d = tighten_defaults(ct, 0, 2);
+  EXPECT_DOUBLE_EQ(d.radius, 1.33);
+  EXPECT_EQ(d.upsample, 2);
+}
+
 TEST(Tighten, BinaryMaskChecks) {
   Volume grey(VoxelType::f32, {187, 1, 1});
   for (std::size_t i = 0; i < 187; ++i) grey.set(i, 0, 0, 0.5 * double(i));

@@ -29,8 +29,8 @@ void print_table(const pm::MeshQuality& q) {
                q.self_intersecting_pairs < 0 ? "not tested" : std::to_string(q.self_intersecting_pairs).c_str());
   std::fprintf(stderr, "  radius ratio min %.3f mean %.3f   angles %.1f..%.1f deg\n", q.rr_min, q.rr_mean,
                q.min_angle_deg, q.max_angle_deg);
-  std::fprintf(stderr, "  valence 6: %.1f%%   <5 or >7: %.2f%%\n", 100 * q.valence6_share,
-               100 * q.valence_outside_5_7_share);
+  std::fprintf(stderr, "  valence 6: %.1f%%   <5 or >7: %.2f%%   creases > 20 deg: %.2f%% of %zu interior edges\n",
+               100 * q.valence6_share, 100 * q.valence_outside_5_7_share, 100 * q.crease_share_20, q.interior_edges);
   if (q.has_sizing)
     std::fprintf(stderr, "  edge/h mean %.3f max %.3f  edges <= 2h: %.4f%%\n", q.edge_h_mean, q.edge_h_max,
                  100 * q.edge_le_2h_share);
@@ -44,8 +44,11 @@ void print_interface_table(const pm::InterfaceQuality& q) {
                q.overall.vertices, q.overall.faces, q.pairs.size(), q.materials.size());
   std::fprintf(stderr, "  edges %zu  boundary %zu  junction-curve %zu  bad %zu  self-separating faces %zu\n", q.edges,
                q.boundary_edges, q.junction_edges, q.bad_edges, q.self_faces);
-  std::fprintf(stderr, "  overall: radius ratio min %.3f mean %.3f   valence 6: %.1f%%\n", q.overall.rr_min,
-               q.overall.rr_mean, 100 * q.overall.valence6_share);
+  std::fprintf(stderr, "  overall: radius ratio min %.3f mean %.3f   valence 6: %.1f%%   creases > 20 deg: %.2f%%\n",
+               q.overall.rr_min, q.overall.rr_mean, 100 * q.overall.valence6_share, 100 * q.overall.crease_share_20);
+  for (const auto& [pr, c] : q.pair_creases)
+    std::fprintf(stderr, "    interface %d-%d: creases > 20 deg %.2f%% of %zu interior edges\n", pr.first, pr.second,
+                 100 * c.share(), c.interior_edges);
   std::fprintf(stderr, "  %8s %8s %8s %7s %7s %6s %8s %9s %6s\n", "material", "vertices", "faces", "rr_min", "rr_mean",
                "val6%", "closed", "manifold", "selfX");
   for (const auto& [l, mq] : q.materials) {
@@ -62,7 +65,9 @@ int main(int argc, char** argv) {
   pm::Tool tool("meshstats",
                 "Quality report of a triangle mesh: radius ratio (2 r_in / r_circ), angles, valence, edge length "
                 "over a sizing field h, water-tightness, manifoldness, components, genus, self-intersections "
-                "(CGAL), and distance to the isosurface it approximates (world units). A table on stderr, JSON "
+                "(CGAL), creases (crease_share_20: the share of interior edges whose two faces bend by more than 20 "
+                "degrees; per interface and pooled on interface meshes) and distance to the isosurface it "
+                "approximates (world units). A table on stderr, JSON "
                 "with -o. Exit 3 when a --require check fails. A multi-material interface mesh (face properties "
                 "label_a, label_b, from tetlabel --materials) is measured as a whole and per material (each "
                 "material's surface taken from the interfaces), plus boundary, junction-curve and bad edges and "
@@ -81,7 +86,8 @@ int main(int argc, char** argv) {
   tool.app.add_option("-o,--output", out, "Write the report as JSON ('-' = stdout)");
   tool.app.add_option("--require", require,
                       "Comma-separated checks, e.g. rr_min>=0.3,rr_mean>=0.94,valence6>=0.65,"
-                      "valence_outside_5_7<=0.01,edge_le_2h>=0.9999,watertight,manifold,no_self_intersections,genus=0");
+                      "valence_outside_5_7<=0.01,edge_le_2h>=0.9999,crease_share_20<=0.03,watertight,manifold,"
+                      "no_self_intersections,genus=0");
   tool.app.add_flag("--no-self-intersections", no_self, "Skip the (slower) self-intersection test");
   tool.app.add_flag("--single", single, "Measure an interface mesh (label_a/label_b faces) as one plain mesh");
   tool.app.add_option("--seeds", seeds_path,

@@ -114,6 +114,22 @@ int main(int argc, char** argv) {
                       {"empty", r.empty}, {"vote_rounds", r.vote_rounds},
                       {"components_removed", r.components_removed},
                       {"component_voxels_removed", r.component_voxels_removed}};
+      pm::Json kept = pm::Json::array();
+      for (const auto& k : r.kept) {
+        kept.push_back({{"label", k.label}, {"stage", k.stage}, {"voxels", k.voxels}});
+        const std::string why = k.stage == "morphology"      ? "the morphology would erase it"
+                                : k.stage == "downsample"    ? "downsampling would erase it"
+                                                             : "every component of it is below --min-component";
+        pm::warn("label " + std::to_string(k.label) + ": " + why + "; kept " + std::to_string(k.voxels) +
+                 " voxel(s) of it (" + (k.stage == "morphology" ? "its input voxels, unprocessed" :
+                                        k.stage == "downsample" ? "the block that holds most of it" :
+                                                                  "its largest component") + ")");
+      }
+      for (auto l : r.lost)
+        pm::warn("label " + std::to_string(l) + ": erased by downsampling; the downsampled grid has too few voxels "
+                 "to keep every label (use a smaller --downsample)");
+      st["counts"]["kept"] = kept;
+      st["counts"]["lost"] = r.lost;
       if (r.components_removed)
         pm::info("removed " + std::to_string(r.components_removed) + " components below " +
                  std::to_string(p.min_component) + " voxels (" + std::to_string(r.component_voxels_removed) +

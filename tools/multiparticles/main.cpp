@@ -39,6 +39,7 @@ void record_stats(const pm::MultiParticleResult& r) {
   st["counts"] = {{"particles", r.positions.size()},
                   {"field_evaluations", r.field_evaluations},
                   {"junction_repairs", r.junction_repairs}};
+  st["engine"] = pm::engine_stats_json(r.engine);
   st["max_residual"] = r.max_residual;
 }
 
@@ -155,6 +156,8 @@ int main(int argc, char** argv) {
         pm::warn(std::string(names[l]) + " not converged after " + std::to_string(s.iterations) +
                  " iterations (--max-iters " + std::to_string(p.max_iters) + "); the result was written anyway");
     }
+    const std::string stuck = pm::engine_failure_summary(r.engine);
+    if (!stuck.empty()) pm::warn(stuck);
     pm::info(summary);
   });
 }

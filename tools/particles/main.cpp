@@ -55,8 +55,9 @@ void record_stats(const pm::ParticleResult& r) {
   pm::add_seconds("population", r.seconds_population);
   pm::add_seconds("finish", r.seconds_finish);
   st["counts"] = {{"particles", r.positions.size()}, {"iterations", r.iterations}, {"levels", r.levels},
-                  {"splits", r.splits}, {"deletions", r.deletions}, {"dropped_init", r.dropped_init}, {"refilled", r.refilled}, {"list_builds", r.list_builds},
+                  {"splits", r.splits}, {"deletions", r.deletions}, {"dropped_init", r.dropped_init}, {"refilled", r.refilled}, {"thinned", r.thinned}, {"list_builds", r.list_builds},
                   {"field_evaluations", r.field_evaluations}, {"particle_updates", r.particle_updates}};
+  st["engine"] = pm::engine_stats_json(r.engine);
   st["converged"] = r.converged;
   st["energy_final"] = r.energy_final;
   st["energy_ideal"] = r.energy_ideal;
@@ -139,6 +140,16 @@ int main(int argc, char** argv) {
   tool.app.add_option("--coarse-start", p.coarse_start, "Coarsest spacing, world units (0 = 4 voxel widths / "
                                                         "field resolutions)")
       ->capture_default_str();
+  tool.app.add_option("--thin-seeds", p.seed_thinning,
+                      "With --init: drop seeds closer than this fraction of the starting local spacing to a kept "
+                      "seed before relaxing (0 = keep all; every seed still anchors its component)")
+      ->check(CLI::Range(0.0, 1.99))
+      ->capture_default_str();
+  tool.app.add_option("--settle", p.settled_move,
+                      "Skip updating a particle while it and its neighbours move less than this fraction of its "
+                      "spacing per iteration, re-checking it every 8 iterations (0 = off)")
+      ->check(CLI::Range(0.0, 0.99))
+      ->capture_default_str();
   tool.app.add_option("-o,--output", output, "Output point set (.ply .vtp .vtk), world units")->required();
 
   pm::WorldFrame frame = pm::WorldFrame::lps;
@@ -162,7 +173,9 @@ int main(int argc, char** argv) {
                         {"init_count", p.init_count}, {"init_lattice", p.init_lattice},
                         {"population_control", p.population_control},
                         {"coarse_to_fine", p.coarse_to_fine},
-                        {"population_tolerance", p.population_tolerance}};
+                        {"population_tolerance", p.population_tolerance},
+                        {"seed_thinning", p.seed_thinning},
+                        {"settled_move", p.settled_move}};
     const std::unique_ptr<pm::ScalarField> field = load_field(implicit, input, kernel, p.iso);
     std::unique_ptr<pm::SizingField> sizing;
     if (!sizing_path.empty()) sizing = std::make_unique<pm::SizingField>(pm::read_volume(sizing_path), sizing_path);
@@ -179,10 +192,13 @@ int main(int argc, char** argv) {
       pm::write_mesh(to_mesh(r), output, {true, frame});
     }
     st["outputs"] = {output};
+    const std::string stuck = pm::engine_failure_summary(r.engine);
+    if (!stuck.empty()) pm::warn(stuck);
     if (!r.converged)
       pm::warn("not converged after " + std::to_string(r.iterations) + " iterations (--max-iters " +
                std::to_string(p.max_iters) + " per level); the result was written anyway");
     pm::info(std::to_string(r.positions.size()) + " particles, " + std::to_string(r.iterations) + " iterations" +
-             (r.dropped_init ? ", " + std::to_string(r.dropped_init) + " initial points dropped" : ""));
+             (r.dropped_init ? ", " + std::to_string(r.dropped_init) + " initial points dropped" : "") +
+             (r.thinned ? ", " + std::to_string(r.thinned) + " seeds thinned" : ""));
   });
 }

@@ -16,7 +16,8 @@ int main(int argc, char** argv) {
                 "Render a point set or mesh (.ply .off .obj .stl) to a PNG with an orthographic camera fitted to "
                 "its bounding box. Points are drawn as oriented disks or blended surface splats in their tangent "
                 "planes (normals from nx ny nz, else from faces); meshes as shaded triangles.",
-                "render particles.ply -o view.png --azimuth 45 --elevation 30 --size 1024x768 --color-by curvature");
+                "render particles.ply -o view.png --azimuth 45 --elevation 30 --size 1024x768 --color-by curvature\n"
+                "  render interfaces.ply -o cut.png --color-by pair --legend --clip x   # inner materials");
   std::string in, out, size = "800x800";
   pm::RenderParams p;
   tool.app.add_option("input", in, "Point set or mesh: .ply, .off, .obj or .stl")->required();
@@ -36,6 +37,12 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   tool.app.add_flag("--edges", p.edges, "Mesh mode: draw triangle edges over the shading");
+  tool.app.add_flag("--legend", p.legend,
+                    "With a face property colour: a key in the top-left corner naming each colour (interface "
+                    "meshes: the material pair label_a-label_b)");
+  tool.app.add_option("--clip", p.clip,
+                      "Mesh mode: cut at the plane x, y or z (optionally :F, the fraction 0..1 of the bounding box, "
+                      "default 0.5) and leave out the faces on the camera's side, so inner materials show");
   tool.app.add_option("--up", p.up, "World axis pointing up on screen: x, y or z")
       ->check(CLI::IsMember({"x", "y", "z"}))
       ->capture_default_str();
@@ -71,7 +78,8 @@ int main(int argc, char** argv) {
     s["inputs"] = {in};
     s["parameters"] = {{"size", {p.width, p.height}}, {"azimuth_deg", p.azimuth_deg},
                        {"elevation_deg", p.elevation_deg}, {"mode", p.mode}, {"color_by", p.color_by},
-                       {"radius", p.radius}, {"edges", p.edges}, {"up", p.up}};
+                       {"radius", p.radius}, {"edges", p.edges}, {"up", p.up},
+                       {"legend", p.legend}, {"clip", p.clip}};
     s["counts"] = {{"vertices", m.vertices.size()}, {"faces", m.faces.size()}};
   });
 }

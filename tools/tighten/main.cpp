@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
                 "inside (--positive-inside for Chapter 6 indicator functions). A mask closer than R + 3 voxels "
                 "to the border is padded (the output grid grows; its origin moves).",
                 "tighten brain.nrrd brain_sdf.nrrd --radius 1.5 --upsample 2\n"
+                "  tighten ct_mask.nrrd ct_sdf.nrrd          # radius auto: the largest voxel spacing\n"
                 "  tighten labels.nrrd 'out/sdf_%d.nrrd' --per-label --radius 1 --upsample 2   # Chapter 6");
   std::string in, out;
   pm::TightenParams p;
@@ -27,9 +28,17 @@ int main(int argc, char** argv) {
                     "Chapter 6: input is a label map; tighten every label (0 included) as its own mask, all on "
                     "the input grid (upsampled by --upsample; the border is extended by replicating labels, not "
                     "treated as an interface) and write one signed distance per label (negative inside)");
-  tool.app.add_option("-r,--radius", p.radius, "Tightening radius R, world units (> 0)")->required();
-  tool.app.add_option("--upsample", p.upsample, "Resample the mask K times finer first (trilinear), for R below "
-                                                "a voxel or so; output spacing h/K")->capture_default_str();
+  std::string radius = "auto", upsample = "auto";
+  tool.app.add_option("-r,--radius", radius,
+                      "Tightening radius R, world units (> 0); auto = the largest voxel spacing of the input (from "
+                      "its header, so anisotropic slices are smoothed), divided by the automatic --upsample K "
+                      "on tiny volumes")
+      ->capture_default_str();
+  tool.app.add_option("--upsample", upsample,
+                      "Resample the mask K (1-8) times finer first (trilinear), for R below a voxel or so; output "
+                      "spacing h/K; auto = 1, or on a volume with fewer than 8 voxels along an axis the smallest K "
+                      "giving 16 (at most 8)")
+      ->capture_default_str();
   tool.app.add_option("--iterations", p.max_iterations, "Most flow steps; 0 = automatic (until converged, at "
                                                         "most 20 (R/h)^2 + 100)")->capture_default_str();
   tool.app.add_option("--tolerance", p.tolerance, "Converged when the zero set moves less than this per step, "
@@ -43,6 +52,39 @@ int main(int argc, char** argv) {
   return tool.run(argc, argv, [&] {
     pm::check_output_path(out, pm::OutputKind::volume, "output");
     auto& st = pm::stats();
+    double r_given = 0;
+    int k_given = 0;
+    if (radius != "auto") {
+      std::size_t used = 0;
+      try {
+        r_given = std::stod(radius, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (used != radius.size()) throw pm::UsageError("--radius " + radius + "; expected a number > 0 (world units) or auto");
+      if (!(r_given > 0))
+        throw pm::UsageError("tighten: radius " + std::to_string(r_given) + " is invalid; expected > 0 (world units) or auto");
+    }
+    if (upsample != "auto") {
+      std::size_t used = 0;
+      try {
+        k_given = std::stoi(upsample, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (used != upsample.size()) throw pm::UsageError("--upsample " + upsample + "; expected an integer 1 to 8 or auto");
+      if (k_given < 1 || k_given > 8)
+        throw pm::UsageError("tighten: upsample " + std::to_string(k_given) + " is invalid; expected 1 to 8 or auto");
+    }
+    if (!pm::is_volume_path(out)) throw pm::UsageError("output " + pm::quote(out) + ": unknown volume extension");
+    const pm::Volume input = pm::read_volume(in);
+    const pm::TightenDefaults d = pm::tighten_defaults(input, r_given, k_given);
+    p.radius = d.radius;
+    p.upsample = d.upsample;
+    if (radius == "auto" || upsample == "auto")
+      pm::info("radius " + std::to_string(p.radius) + " (world units), upsample " + std::to_string(p.upsample) +
+               (radius == "auto" ? " (radius from the header's largest spacing" : " (") +
+               (upsample == "auto" && p.upsample > 1 ? ", tiny volume upsampled)" : ")"));
     st["inputs"] = {in};
     st["parameters"] = {{"radius", p.radius}, {"upsample", p.upsample}, {"iterations", p.max_iterations},
                         {"tolerance", p.tolerance}, {"reinit", p.reinit_every}, {"positive_inside", p.positive_inside},
@@ -53,7 +95,7 @@ int main(int argc, char** argv) {
       const auto pct = out.find("%d");
       if (pct == std::string::npos || out.find("%d", pct + 1) != std::string::npos)
         throw pm::UsageError("output " + pm::quote(out) + ": with --per-label expected a pattern with one %d");
-      const pm::Volume labels = pm::read_volume(in);
+      const pm::Volume& labels = input;
       pm::Json per = pm::Json::object(), outputs = pm::Json::array();
       pm::ScopedStage stage("tighten");
       try {
@@ -76,7 +118,7 @@ int main(int argc, char** argv) {
       st["counts"] = {{"labels", per.size()}, {"per_label", per}};
       return;
     }
-    const pm::Volume mask = pm::read_volume(in);
+    const pm::Volume& mask = input;
     pm::TightenResult r;
     {
       pm::ScopedStage stage("tighten");

@@ -21,7 +21,7 @@
 namespace pm {
 namespace {
 
-constexpr int kVtkTetra = 10;
+constexpr int kVtkVertex = 1, kVtkTriangle = 5, kVtkPolygon = 7, kVtkTetra = 10;
 
 void save(const std::string& text, const std::string& path, const std::string& where) {
   std::ofstream os(path, std::ios::binary);
@@ -296,34 +296,42 @@ void write_vtk(const Mesh& m, const std::string& path, bool binary, WorldFrame f
   const std::string where = "write_vtk: " + quote(path);
   m.validate(where);
   check_ply_names(m, where);
-  std::string out = legacy_header("POLYDATA", binary, frame);
+  // UNSTRUCTURED_GRID of VTK_TRIANGLE (or VTK_VERTEX) cells: ParaView and
+  // Slicer read it as they read POLYDATA, and meshio (which reads no legacy
+  // POLYDATA) opens it too.
+  std::string out = legacy_header("UNSTRUCTURED_GRID", binary, frame);
   LegacyOut o(out, binary);
   legacy_points(out, o, m.vertices);
-  if (!m.faces.empty()) {
-    out += "POLYGONS " + std::to_string(m.faces.size()) + " " + std::to_string(4 * m.faces.size()) + "\n";
-    for (const auto& f : m.faces) {
-      o.i32(3);
-      for (int v : f) o.i32(v);
+  const bool tri = !m.faces.empty();
+  const std::size_t ncells = tri ? m.faces.size() : m.vertices.size();
+  if (ncells) {
+    out += "CELLS " + std::to_string(ncells) + " " + std::to_string((tri ? 4 : 2) * ncells) + "\n";
+    for (std::size_t c = 0; c < ncells; ++c) {
+      if (tri) {
+        o.i32(3);
+        for (int v : m.faces[c]) o.i32(v);
+      } else {
+        o.i32(1);
+        o.i32(std::int32_t(c));
+      }
       o.eol();
     }
     o.end_section();
-    if (!m.face_ints.empty()) {
+    out += "CELL_TYPES " + std::to_string(ncells) + "\n";
+    for (std::size_t c = 0; c < ncells; ++c) {
+      o.i32(tri ? kVtkTriangle : kVtkVertex);
+      o.eol();
+    }
+    o.end_section();
+    if (tri && !m.face_ints.empty()) {
       out += "CELL_DATA " + std::to_string(m.faces.size()) + "\n";
       for (const auto& [name, v] : m.face_ints) legacy_int_scalars(out, o, name, v);
     }
-  } else if (!m.vertices.empty()) {
-    out += "VERTICES " + std::to_string(m.vertices.size()) + " " + std::to_string(2 * m.vertices.size()) + "\n";
-    for (std::size_t i = 0; i < m.vertices.size(); ++i) {
-      o.i32(1);
-      o.i32(std::int32_t(i));
-      o.eol();
-    }
-    o.end_section();
   }
   if (m.has_normals() || !m.vertex_scalars.empty()) {
     out += "POINT_DATA " + std::to_string(m.vertices.size()) + "\n";
     if (m.has_normals()) {
-      out += "NORMALS Normals double\n";
+      out += "VECTORS Normals double\n";  // meshio reads no NORMALS section
       for (const Vec3& n : m.normals) {
         o.f64(n.x);
         o.f64(n.y);
@@ -369,14 +377,18 @@ Mesh read_vtk(const std::string& path, WorldFrame* frame) {
   const std::string mode = in.word();
   if (mode != "ASCII" && mode != "BINARY") in.fail("third line " + quote(mode) + "; expected ASCII or BINARY");
   const bool binary = mode == "BINARY";
-  if (in.word() != "DATASET") in.fail("expected \"DATASET POLYDATA\" after " + mode);
+  if (in.word() != "DATASET") in.fail("expected \"DATASET POLYDATA\" or UNSTRUCTURED_GRID after " + mode);
   const std::string ds = in.word();
-  if (ds != "POLYDATA")
-    in.fail("DATASET " + ds + "; expected POLYDATA (surface meshes and point sets; tetrahedra are written, not read)");
+  const bool grid = ds == "UNSTRUCTURED_GRID";
+  if (ds != "POLYDATA" && !grid)
+    in.fail("DATASET " + ds + "; expected POLYDATA or UNSTRUCTURED_GRID (surface meshes and point sets)");
 
   Mesh m;
-  std::vector<std::vector<int>> polys;
-  std::size_t nverts_cells = 0;
+  // Cells in file order: POLYDATA's VERTICES then POLYGONS (kinds known), or
+  // an UNSTRUCTURED_GRID's CELLS (kinds from CELL_TYPES).
+  std::vector<std::vector<int>> cells;
+  std::vector<int> kinds;
+
   bool have_points = false;
   enum class Data { none, point, cell } attr = Data::none;
   std::uint64_t attr_count = 0;
@@ -394,7 +406,7 @@ Mesh read_vtk(const std::string& path, WorldFrame* frame) {
       for (auto& v : m.vertices)
         for (int c = 0; c < 3; ++c) v[c] = in.f64(binary, type, "POINTS");
       have_points = true;
-    } else if (key == "VERTICES" || key == "POLYGONS") {
+    } else if (key == "VERTICES" || key == "POLYGONS" || (grid && key == "CELLS")) {
       const std::uint64_t n = in.count(key), size = in.count(key);
       if (size > in.remaining() / (binary ? 4 : 2) + 1 || n > size)
         in.fail(key + " sizes " + std::to_string(n) + " " + std::to_string(size) +
@@ -415,22 +427,38 @@ Mesh read_vtk(const std::string& path, WorldFrame* frame) {
                     " (POINTS must come first)");
           i = int(x);
         }
-        if (key == "POLYGONS") {
-          if (poly.size() < 3) in.fail("POLYGONS cell " + std::to_string(c) + " has fewer than 3 vertices");
-          polys.push_back(std::move(poly));
-        }
+        if (key == "POLYGONS" && poly.size() < 3)
+          in.fail("POLYGONS cell " + std::to_string(c) + " has fewer than 3 vertices");
+        cells.push_back(std::move(poly));
+        kinds.push_back(key == "VERTICES" ? kVtkVertex : key == "POLYGONS" ? kVtkPolygon : -1);
       }
-      if (key == "VERTICES") nverts_cells += n;
+
+    } else if (grid && key == "CELL_TYPES") {
+      const std::uint64_t n = in.count(key);
+      if (n != cells.size())
+        in.fail("CELL_TYPES " + std::to_string(n) + "; expected " + std::to_string(cells.size()) + " (the CELLS count)");
+      in.next_line();
+      for (std::uint64_t c = 0; c < n; ++c) {
+        const double t = in.f64(binary, "int", key);
+        const std::size_t k = cells[c].size();
+        if (!((t == kVtkVertex && k == 1) || (t == kVtkTriangle && k == 3) || (t == kVtkPolygon && k >= 3)))
+          in.fail("CELL_TYPES cell " + std::to_string(c) + ": type " + std::to_string(int(t)) + " with " +
+                  std::to_string(k) + " vertices; expected 1 (vertex), 5 (triangle) or 7 (polygon): surfaces and "
+                  "point sets are read, tetrahedra are written, not read");
+        kinds[c] = int(t);
+      }
     } else if (key == "POINT_DATA" || key == "CELL_DATA") {
       attr = key == "POINT_DATA" ? Data::point : Data::cell;
       attr_count = in.count(key);
-      const std::uint64_t expect = attr == Data::point ? m.vertices.size() : nverts_cells + polys.size();
+      const std::uint64_t expect = attr == Data::point ? m.vertices.size() : cells.size();
       if (attr_count != expect)
         in.fail(key + " " + std::to_string(attr_count) + "; expected " + std::to_string(expect) +
                 (attr == Data::point ? " (the point count)" : " (the cell count)"));
-    } else if (key == "SCALARS" || key == "NORMALS") {
+    } else if (key == "SCALARS" || key == "NORMALS" || key == "VECTORS") {
       if (attr == Data::none) in.fail(key + " before POINT_DATA or CELL_DATA");
       const std::string name = in.word(), type = in.word();
+      if (key == "VECTORS" && name != "Normals")
+        in.fail("VECTORS " + name + " is not read; expected point normals (NORMALS, or VECTORS Normals)");
       if (!known_type(type)) in.fail(key + " " + name + ": unsupported type " + quote(type));
       int comps = 3;
       const std::string extra = in.rest();
@@ -443,8 +471,8 @@ Mesh read_vtk(const std::string& path, WorldFrame* frame) {
       }
       std::vector<double> v(attr_count * std::uint64_t(comps));
       for (double& x : v) x = in.f64(binary, type, key + " " + name);
-      if (key == "NORMALS") {
-        if (attr != Data::point) in.fail("cell NORMALS are not read; expected point normals");
+      if (key != "SCALARS") {
+        if (attr != Data::point) in.fail("cell " + key + " are not read; expected point normals");
         m.normals.resize(attr_count);
         for (std::size_t i = 0; i < attr_count; ++i) m.normals[i] = Vec3(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
       } else if (attr == Data::point) {
@@ -458,12 +486,14 @@ Mesh read_vtk(const std::string& path, WorldFrame* frame) {
     }
   }
   if (!have_points) in.fail("no POINTS section");
-  for (std::size_t c = 0; c < polys.size(); ++c) {
-    const auto& p = polys[c];
+  for (std::size_t c = 0; c < cells.size(); ++c) {
+    if (kinds[c] < 0) in.fail("CELLS without CELL_TYPES");
+    if (kinds[c] == kVtkVertex) continue;
+    const auto& p = cells[c];
     for (std::size_t k = 1; k + 1 < p.size(); ++k) {
       m.faces.push_back({p[0], p[k], p[k + 1]});
       for (const auto& [name, v] : cell_scalars) {
-        const double x = std::round(v[nverts_cells + c]);
+        const double x = std::round(v[c]);
         if (!(std::fabs(x) <= double(std::numeric_limits<int>::max())))
           in.fail("CELL_DATA " + name + ": value " + std::to_string(x) + " does not fit an int");
         m.face_ints[name].push_back(int(x));

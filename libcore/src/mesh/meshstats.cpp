@@ -43,6 +43,51 @@ double radius_ratio(const Vec3& a, const Vec3& b, const Vec3& c) {
 
 }  // namespace
 
+CreaseCount count_creases(const Mesh& m, const std::vector<int>& faces, double angle_deg) {
+  const std::size_t n = faces.empty() ? m.faces.size() : faces.size();
+  auto face_at = [&](std::size_t i) { return faces.empty() ? int(i) : faces[i]; };
+  // Directed edge (u, v) of a face, keyed by (min, max): the faces using it and the
+  // direction each runs through it (+1: min -> max).
+  struct Use {
+    int face[2] = {-1, -1};
+    int dir[2] = {0, 0};
+    int count = 0;
+  };
+  std::unordered_map<std::uint64_t, Use> uses;
+  uses.reserve(n * 2);
+  for (std::size_t i = 0; i < n; ++i) {
+    const int f = face_at(i);
+    for (int e = 0; e < 3; ++e) {
+      int a = m.faces[f][e], b = m.faces[f][(e + 1) % 3];
+      const int dir = a < b ? 1 : -1;
+      if (a > b) std::swap(a, b);
+      Use& u = uses[(std::uint64_t(std::uint32_t(a)) << 32) | std::uint32_t(b)];
+      if (u.count < 2) {
+        u.face[u.count] = f;
+        u.dir[u.count] = dir;
+      }
+      ++u.count;
+    }
+  }
+  auto normal = [&](int f) {
+    const auto& t = m.faces[f];
+    return cross(m.vertices[t[1]] - m.vertices[t[0]], m.vertices[t[2]] - m.vertices[t[0]]);
+  };
+  const double cos_limit = std::cos(angle_deg * M_PI / 180);
+  CreaseCount c;
+  for (const auto& [key, u] : uses) {
+    if (u.count != 2) continue;
+    const Vec3 n0 = normal(u.face[0]);
+    Vec3 n1 = normal(u.face[1]);
+    const double l0 = norm(n0), l1 = norm(n1);
+    if (!(l0 > 0) || !(l1 > 0)) continue;
+    if (u.dir[0] == u.dir[1]) n1 = n1 * -1.0;  // same direction through the edge: orientations disagree
+    ++c.interior_edges;
+    c.creased += dot(n0, n1) / (l0 * l1) < cos_limit;
+  }
+  return c;
+}
+
 MeshQuality mesh_quality(const Mesh& m, const MeshQualityParams& p) {
   m.validate("mesh_quality");
   MeshQuality q;
@@ -155,6 +200,10 @@ MeshQuality mesh_quality(const Mesh& m, const MeshQualityParams& p) {
     }
     q.dist_centroid_mean = n ? sum / double(n) : 0;
   }
+  const CreaseCount creases = count_creases(m);
+  q.interior_edges = creases.interior_edges;
+  q.creased_edges_20 = creases.creased;
+  q.crease_share_20 = creases.share();
   if (p.self_intersections) q.self_intersecting_pairs = count_self_intersections(m);
   return q;
 }
@@ -169,6 +218,8 @@ Json to_json(const MeshQuality& q) {
                   {"share_6", q.valence6_share},
                   {"share_below_5_or_above_7", q.valence_outside_5_7_share}};
   j["edge_length_mean"] = q.edge_length_mean;
+  j["crease_share_20"] = q.crease_share_20;
+  j["creases"] = {{"angle_deg", 20}, {"interior_edges", q.interior_edges}, {"creased_edges", q.creased_edges_20}};
   if (q.has_sizing)
     j["edge_over_h"] = {{"max", q.edge_h_max}, {"mean", q.edge_h_mean}, {"share_le_2", q.edge_le_2h_share}};
   if (q.has_field)
@@ -208,7 +259,7 @@ std::vector<std::string> check_requirements(const MeshQuality& q, const std::str
       if (op == std::string::npos)
         throw UsageError("requirement \"" + item +
                          "\" is unknown; expected watertight, manifold, no_self_intersections or KEY>=V, KEY<=V, "
-                         "KEY=V with KEY in rr_min rr_mean min_angle valence6 valence_outside_5_7 edge_le_2h "
+                         "KEY=V with KEY in rr_min rr_mean min_angle valence6 valence_outside_5_7 edge_le_2h crease_share_20 "
                          "dist_vertex_max dist_centroid_max genus components");
       const std::string key = item.substr(0, op);
       std::string cmp = item.substr(op, item[op + 1] == '=' ? 2 : 1);
@@ -225,6 +276,7 @@ std::vector<std::string> check_requirements(const MeshQuality& q, const std::str
       else if (key == "valence6") have = q.valence6_share;
       else if (key == "valence_outside_5_7") have = q.valence_outside_5_7_share;
       else if (key == "edge_le_2h") have = q.edge_le_2h_share;
+      else if (key == "crease_share_20") have = q.crease_share_20;
       else if (key == "dist_vertex_max") have = q.dist_vertex_max;
       else if (key == "dist_centroid_max") have = q.dist_centroid_max;
       else if (key == "genus") have = double(t.genus);

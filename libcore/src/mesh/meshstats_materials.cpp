@@ -63,6 +63,21 @@ InterfaceQuality interface_quality(const Mesh& m, const MeshQualityParams& p) {
     labels.insert(b[f]);
   }
   q.pairs.assign(pairs.begin(), pairs.end());
+  {
+    std::map<std::pair<int, int>, std::vector<int>> pair_faces;
+    for (std::size_t f = 0; f < m.faces.size(); ++f)
+      pair_faces[{std::min(a[f], b[f]), std::max(a[f], b[f])}].push_back(int(f));
+    CreaseCount pooled;
+    for (const auto& [pr, fs] : pair_faces) {
+      const CreaseCount c = count_creases(m, fs);
+      q.pair_creases[pr] = c;
+      pooled.interior_edges += c.interior_edges;
+      pooled.creased += c.creased;
+    }
+    q.overall.interior_edges = pooled.interior_edges;
+    q.overall.creased_edges_20 = pooled.creased;
+    q.overall.crease_share_20 = pooled.share();
+  }
 
   // Edges -> incident faces.
   std::unordered_map<std::uint64_t, std::vector<int>> ef;
@@ -134,6 +149,12 @@ Json to_json(const InterfaceQuality& q) {
                      {"rr_min_over_materials", rr_min},
                      {"rr_mean_lowest_material", rr_mean_min},
                      {"pairs", pairs}};
+  Json per_pair = Json::array();
+  for (const auto& [pr, c] : q.pair_creases)
+    per_pair.push_back({{"pair", {pr.first, pr.second}}, {"interior_edges", c.interior_edges},
+                        {"creased_edges", c.creased}, {"crease_share_20", c.share()}});
+  j["interfaces"]["crease_share_20"] = q.overall.crease_share_20;
+  j["interfaces"]["per_pair"] = per_pair;
   if (q.junction_vertex_share >= 0) j["interfaces"]["junction_edge_vertices_on_junctions"] = q.junction_vertex_share;
   Json mats = Json::object();
   for (const auto& [l, mq] : q.materials) mats[std::to_string(l)] = to_json(mq);

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <map>
+#include <string>
 #include <unordered_map>
 
 #include "pm/base/error.h"
@@ -28,6 +30,8 @@ Vec3 colormap(double t) {
   return kStops[i] * (1 - f) + kStops[i + 1] * f;
 }
 
+}  // namespace
+
 // Categorical palette for integer labels (value modulo 12).
 Vec3 category_color(int v) {
   static const Vec3 kPalette[] = {{0.122, 0.467, 0.706}, {1.000, 0.498, 0.055}, {0.173, 0.627, 0.173},
@@ -37,6 +41,8 @@ Vec3 category_color(int v) {
   constexpr int n = int(sizeof kPalette / sizeof kPalette[0]);
   return kPalette[((v % n) + n) % n];
 }
+
+namespace {
 
 const Vec3 kPlain{0.80, 0.78, 0.72};
 const Vec3 kEdge{0.12, 0.12, 0.15};
@@ -88,7 +94,86 @@ ColorSource color_source(const Mesh& m, const std::string& name) {
   throw InputError("render: no vertex or face property " + quote(name) + "; available: " + available_properties(m));
 }
 
+// "x", "y:0.3": axis index and fraction; throws UsageError otherwise.
+std::pair<int, double> parse_clip(const std::string& c) {
+  const std::string axis = c.substr(0, c.find(':'));
+  double f = 0.5;
+  bool ok = axis == "x" || axis == "y" || axis == "z";
+  if (ok && c.size() > 1) {
+    ok = c[1] == ':';
+    if (ok) {
+      std::size_t used = 0;
+      try {
+        f = std::stod(c.substr(2), &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      ok = used > 0 && used == c.size() - 2 && f >= 0 && f <= 1;
+    }
+  }
+  if (!ok) throw UsageError("render: clip " + quote(c) + "; expected x, y or z, optionally :F with F in [0, 1]");
+  return {axis[0] - 'x', f};
+}
+
+// 5x7 bitmap glyphs for legend text (bit 4 = leftmost column).
+const std::uint8_t* glyph(char ch) {
+  static const std::uint8_t kDigits[10][7] = {
+      {0x0E, 0x11, 0x13, 0x15, 0x19, 0x11, 0x0E}, {0x04, 0x0C, 0x04, 0x04, 0x04, 0x04, 0x0E},
+      {0x0E, 0x11, 0x01, 0x02, 0x04, 0x08, 0x1F}, {0x1F, 0x02, 0x04, 0x02, 0x01, 0x11, 0x0E},
+      {0x02, 0x06, 0x0A, 0x12, 0x1F, 0x02, 0x02}, {0x1F, 0x10, 0x1E, 0x01, 0x01, 0x11, 0x0E},
+      {0x06, 0x08, 0x10, 0x1E, 0x11, 0x11, 0x0E}, {0x1F, 0x01, 0x02, 0x04, 0x08, 0x08, 0x08},
+      {0x0E, 0x11, 0x11, 0x0E, 0x11, 0x11, 0x0E}, {0x0E, 0x11, 0x11, 0x0F, 0x01, 0x02, 0x0C}};
+  static const std::uint8_t kDash[7] = {0, 0, 0, 0x1F, 0, 0, 0};
+  static const std::uint8_t kBlank[7] = {0, 0, 0, 0, 0, 0, 0};
+  if (ch >= '0' && ch <= '9') return kDigits[ch - '0'];
+  return ch == '-' ? kDash : kBlank;
+}
+
+void fill_rect(Image& img, int x0, int y0, int w, int h, const Vec3& c) {
+  for (int y = std::max(0, y0); y < std::min(img.height, y0 + h); ++y)
+    for (int x = std::max(0, x0); x < std::min(img.width, x0 + w); ++x)
+      for (int k = 0; k < 3; ++k)
+        img.rgb[3 * (std::size_t(y) * std::size_t(img.width) + std::size_t(x)) + k] =
+            std::uint8_t(std::lround(255.0 * std::clamp(c[k], 0.0, 1.0)));
+}
+
+void draw_text(Image& img, int x, int y, int scale, const std::string& text, const Vec3& c) {
+  for (char ch : text) {
+    const std::uint8_t* g = glyph(ch);
+    for (int r = 0; r < 7; ++r)
+      for (int col = 0; col < 5; ++col)
+        if (g[r] & (0x10 >> col)) fill_rect(img, x + col * scale, y + r * scale, scale, scale, c);
+    x += 6 * scale;
+  }
+}
+
+// The key of a face-int colouring: one swatch and name per value present, top left.
+void draw_legend(Image& img, const Mesh& m, const std::vector<int>& cat) {
+  std::map<int, std::string> names;
+  const auto a = m.face_ints.find("label_a"), b = m.face_ints.find("label_b");
+  const bool pairs = a != m.face_ints.end() && b != m.face_ints.end() && &cat != &a->second && &cat != &b->second;
+  for (std::size_t f = 0; f < cat.size(); ++f)
+    if (!names.count(cat[f]))
+      names[cat[f]] = pairs ? std::to_string(a->second[f]) + "-" + std::to_string(b->second[f])
+                            : std::to_string(cat[f]);
+  const int s = std::max(1, std::min(img.width, img.height) / 400);  // glyph pixel size
+  const int row = 10 * s, pad = 4 * s;
+  std::size_t longest = 0;
+  for (const auto& [v, n] : names) longest = std::max(longest, n.size());
+  const int rows = int(std::min<std::size_t>(names.size(), std::size_t(std::max(1, (img.height - 2 * pad) / row))));
+  const int box_w = pad + 8 * s + 3 * s + int(longest) * 6 * s + pad, box_h = pad + rows * row + pad - 3 * s;
+  fill_rect(img, 0, 0, box_w, box_h, {1, 1, 1});
+  int y = pad, shown = 0;
+  for (const auto& [v, n] : names) {
+    if (shown++ == rows) break;
+    fill_rect(img, pad, y, 8 * s, 7 * s, category_color(v));
+    draw_text(img, pad + 11 * s, y, s, n, kEdge);
+    y += row;
+  }
+}
+
 void check_params(const RenderParams& p) {
+  if (!p.clip.empty()) parse_clip(p.clip);
   if (p.width < 1 || p.width > 8192 || p.height < 1 || p.height > 8192)
     throw UsageError("render: image size " + std::to_string(p.width) + "x" + std::to_string(p.height) +
                      " pixels; expected each side in [1, 8192]");
@@ -476,10 +561,34 @@ Image render(const Mesh& m, const RenderParams& p) {
     throw InputError("render: face property " + quote(p.color_by) +
                      " can only colour mode \"mesh\"; expected a vertex property");
   Frame fb(p.width, p.height);
-  if (s.mode == "mesh") render_mesh(m, s.cam, cs, p.edges, fb);
+  if (s.mode == "mesh" && !p.clip.empty()) {
+    // Drop the faces on the camera's side of the plane; face properties follow.
+    const auto [axis, frac] = parse_clip(p.clip);
+    Box box;
+    for (const Vec3& v : m.vertices)
+      if (is_finite(v)) box.extend(v);
+    const double plane = box.lo[axis] + frac * (box.hi[axis] - box.lo[axis]);
+    const double toward_camera = -s.cam.forward[axis];  // > 0: the camera sits on the + side
+    Mesh kept;
+    kept.vertices = m.vertices;
+    kept.normals = m.normals;
+    kept.vertex_scalars = m.vertex_scalars;
+    for (const auto& [name, vals] : m.face_ints) kept.face_ints[name];
+    for (std::size_t f = 0; f < m.faces.size(); ++f) {
+      const auto& t = m.faces[f];
+      const double c = (m.vertices[t[0]][axis] + m.vertices[t[1]][axis] + m.vertices[t[2]][axis]) / 3;
+      if ((c - plane) * (toward_camera >= 0 ? 1 : -1) > 0) continue;
+      kept.faces.push_back(t);
+      for (const auto& [name, vals] : m.face_ints) kept.face_ints[name].push_back(vals[f]);
+    }
+    const ColorSource kcs = color_source(kept, p.color_by);
+    render_mesh(kept, s.cam, kcs, p.edges, fb);
+  } else if (s.mode == "mesh") render_mesh(m, s.cam, cs, p.edges, fb);
   else if (s.mode == "disks") render_disks(m, s.cam, cs, s.radii, fb);
   else render_splats(m, s.cam, cs, s.radii, fb);
-  return fb.to_image(p.background);
+  Image img = fb.to_image(p.background);
+  if (p.legend && cs.label) draw_legend(img, m, *cs.label);
+  return img;
 }
 
 }  // namespace pm

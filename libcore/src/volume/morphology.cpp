@@ -480,13 +480,26 @@ Indexed downsample_indices(const Indexed& x, int k) {
   return o;
 }
 
+// Voxels per label index (empty voxels not counted).
+std::vector<std::size_t> index_counts(const Indexed& x) {
+  std::vector<std::size_t> c(x.values.size(), 0);
+  for (std::uint16_t v : x.idx)
+    if (v != kEmpty) ++c[v];
+  return c;
+}
+
 // Removes (sets empty) every 6-connected component of one label with fewer
-// than `min_voxels` voxels; returns {components removed, voxels removed}.
-std::pair<std::size_t, std::size_t> remove_small_components(Indexed& x, std::size_t min_voxels) {
+// than `min_voxels` voxels, except a label's largest component when all of its
+// components are that small (listed in `kept`); returns {components removed,
+// voxels removed}.
+std::pair<std::size_t, std::size_t> remove_small_components(Indexed& x, std::size_t min_voxels,
+                                                            std::vector<KeptLabel>& kept) {
   const Dims d = x.dims;
   const std::size_t n = d.count(), sy = d.nx, sz = d.nx * d.ny;
   std::vector<std::uint32_t> comp(n, 0);  // 0 = not visited, else component id
   std::vector<std::uint32_t> stack, members;
+  std::vector<std::size_t> sizes(1, 0);        // per component id (0 unused)
+  std::vector<std::uint16_t> label_of(1, 0);  // per component id
   std::size_t ncomp = 0, nvox = 0;
   std::uint32_t id = 0;
   for (std::size_t s = 0; s < n; ++s) {
@@ -514,13 +527,66 @@ std::pair<std::size_t, std::size_t> remove_small_components(Indexed& x, std::siz
       if (k > 0) visit(c - sz);
       if (k + 1 < d.nz) visit(c + sz);
     }
-    if (members.size() < min_voxels) {
+    sizes.push_back(members.size());
+    label_of.push_back(l);
+  }
+  // Per label: its largest component, and whether any is big enough to stay.
+  const std::size_t nl = x.values.size();
+  std::vector<std::uint32_t> largest(nl, 0);
+  std::vector<char> has_big(nl, 0);
+  for (std::uint32_t c = 1; c <= id; ++c) {
+    const std::uint16_t l = label_of[c];
+    if (sizes[c] >= min_voxels) has_big[l] = 1;
+    if (!largest[l] || sizes[c] > sizes[largest[l]]) largest[l] = c;
+  }
+  for (std::size_t l = 0; l < nl; ++l)
+    if (largest[l] && !has_big[l]) kept.push_back({x.values[l], "min_component", sizes[largest[l]]});
+  for (std::uint32_t c = 1; c <= id; ++c)
+    if (sizes[c] < min_voxels && !(largest[label_of[c]] == c && !has_big[label_of[c]])) {
       ++ncomp;
-      nvox += members.size();
-      for (std::uint32_t c : members) x.idx[c] = kEmpty;
+      nvox += sizes[c];
     }
+  for (std::size_t v = 0; v < n; ++v) {
+    const std::uint32_t c = comp[v];
+    if (c && sizes[c] < min_voxels && !(largest[label_of[c]] == c && !has_big[label_of[c]])) x.idx[v] = kEmpty;
   }
   return {ncomp, nvox};
+}
+
+// Labels that downsampling left without a voxel: each takes the output voxel
+// whose block holds most of its input voxels, among those whose current label
+// keeps other voxels (ties: the first such voxel); appended to `kept`, or to
+// `lost` when no such voxel exists.
+void keep_downsampled_labels(const Indexed& in, Indexed& out, int k, const std::vector<std::size_t>& before,
+                             std::vector<KeptLabel>& kept, std::vector<std::int64_t>& lost) {
+  std::vector<std::size_t> after = index_counts(out);
+  const Dims d = in.dims, od = out.dims;
+  const auto kk = std::size_t(k);
+  for (std::size_t l = 0; l < in.values.size(); ++l) {
+    if (before[l] == 0 || after[l] > 0) continue;
+    std::unordered_map<std::size_t, std::size_t> in_block;  // output voxel -> voxels of l in its block
+    for (std::size_t z = 0, v = 0; z < d.nz; ++z)
+      for (std::size_t y = 0; y < d.ny; ++y)
+        for (std::size_t x = 0; x < d.nx; ++x, ++v)
+          if (in.idx[v] == l) ++in_block[x / kk + od.nx * (y / kk + od.ny * (z / kk))];
+    std::size_t best = std::size_t(-1), best_count = 0;
+    for (const auto& [o, c] : in_block) {
+      const std::uint16_t cur = out.idx[o];
+      if (cur != kEmpty && after[cur] < 2) continue;
+      if (c > best_count || (c == best_count && o < best)) {
+        best = o;
+        best_count = c;
+      }
+    }
+    if (best == std::size_t(-1)) {
+      lost.push_back(in.values[l]);
+      continue;
+    }
+    if (out.idx[best] != kEmpty) --after[out.idx[best]];
+    out.idx[best] = std::uint16_t(l);
+    after[l] = 1;
+    kept.push_back({in.values[l], "downsample", 1});
+  }
 }
 
 void check_factor(int k) {
@@ -634,14 +700,35 @@ LabelMorphResult morph_labels(const Volume& labels, const LabelMorphParams& p) {
     }
     for (std::size_t v = 0; v < state.size(); ++v)
       if (state[v] == kEmpty && !processed[x.idx[v]]) state[v] = x.idx[v];
+    // Never erase a material: a processed label its own steps left without a
+    // voxel gets its input voxels back. A passive label (typically the
+    // background) that other labels' dilations cover was asked for.
+    std::vector<char> present(nl, 0);
+    for (std::uint16_t v : state)
+      if (v != kEmpty) present[v] = 1;
+    for (std::size_t a = 0; a < nl; ++a) {
+      if (present[a] || !processed[a]) continue;
+      std::size_t n = 0;
+      for (std::size_t v = 0; v < state.size(); ++v)
+        if (x.idx[v] == a) {
+          state[v] = std::uint16_t(a);
+          ++n;
+        }
+      if (n) res.kept.push_back({x.values[a], "morphology", n});
+    }
     x.idx.swap(state);
   }
 
-  if (p.downsample > 1) x = downsample_indices(x, p.downsample);
+  if (p.downsample > 1) {
+    const std::vector<std::size_t> before = index_counts(x);
+    Indexed o = downsample_indices(x, p.downsample);
+    keep_downsampled_labels(x, o, p.downsample, before, res.kept, res.lost);
+    x = std::move(o);
+  }
   if (p.min_component > 1) {
     if (x.idx.size() >= std::size_t(std::numeric_limits<std::uint32_t>::max()))
       throw InputError("morph_labels: --min-component needs fewer than 2^32 voxels");
-    const auto [nc, nv] = remove_small_components(x, p.min_component);
+    const auto [nc, nv] = remove_small_components(x, p.min_component, res.kept);
     res.components_removed = nc;
     res.component_voxels_removed = nv;
   }

@@ -21,6 +21,27 @@
 
 namespace pm {
 
+TightenDefaults tighten_defaults(const Volume& v, double radius, int upsample) {
+  TightenDefaults d;
+  const Dims n = v.dims();
+  const std::size_t smallest = std::min({n.nx, n.ny, n.nz});
+  const bool auto_k = upsample <= 0;
+  d.upsample = upsample;
+  if (auto_k) {
+    d.upsample = 1;
+    if (smallest > 0 && smallest < kTightenMinVoxels)
+      d.upsample = int(std::min<std::size_t>(8, (2 * kTightenMinVoxels + smallest - 1) / smallest));
+  }
+  d.radius = radius;
+  if (!(radius > 0)) {
+    const Geometry g = v.geometry();
+    d.radius = std::max({g.spacing(0), g.spacing(1), g.spacing(2)});
+    if (auto_k) d.radius /= double(d.upsample);
+  }
+  return d;
+}
+
+
 std::vector<std::uint8_t> binary_mask_inside(const Volume& mask, const std::string& what) {
   const std::size_t n = mask.count();
   if (n == 0) throw InputError(what + ": the volume has no voxels");

@@ -19,14 +19,19 @@
 
 namespace pm {
 
-/// Legacy POLYDATA: POINTS (double), POLYGONS (or VERTICES for a point set),
-/// CELL_DATA / POINT_DATA SCALARS and NORMALS. ASCII, or BINARY (big endian).
+/// Legacy UNSTRUCTURED_GRID of VTK_TRIANGLE cells (VTK_VERTEX for a point
+/// set; meshio reads no legacy POLYDATA, ParaView and Slicer read both):
+/// POINTS (double), CELLS, CELL_TYPES, CELL_DATA / POINT_DATA SCALARS and
+/// the normals as VECTORS Normals (meshio reads no NORMALS section). ASCII,
+/// or BINARY (big endian).
 /// \throw InputError when the mesh fails validate() or a property name is not
 /// one printable word; IoError when the file cannot be written.
 void write_vtk(const Mesh& m, const std::string& path, bool binary = false, WorldFrame frame = WorldFrame::lps);
 
-/// Reads what write_vtk writes (ASCII or BINARY POLYDATA of version <= 4.2:
-/// POINTS, VERTICES, POLYGONS fan-triangulated, SCALARS and NORMALS point and
+/// Reads what write_vtk writes and legacy POLYDATA (ASCII or BINARY, version
+/// <= 4.2: POINTS; VERTICES and POLYGONS, or CELLS and CELL_TYPES of vertex,
+/// triangle and polygon cells; polygons fan-triangulated; SCALARS, and NORMALS
+/// or VECTORS Normals, point and
 /// cell data; cell scalars become face ints, rounded). `frame` (when not null)
 /// is set from a SPACE= in the header line (LPS when none).
 /// \throw IoError when unreadable; InputError for other datasets, sections we

@@ -39,7 +39,28 @@ struct MeshQuality {
   MeshTopology topology;
   int self_intersecting_pairs = -1;  ///< -1: not tested (non-manifold mesh or disabled)
   double edge_length_mean = 0;
+  // Smoothness: interior edges (exactly two faces) whose faces bend by more than
+  // 20 degrees (angle between the normals, orientation made consistent across the
+  // edge). Slice terraces of anisotropic scans show here, not in the radius ratio.
+  std::size_t interior_edges = 0, creased_edges_20 = 0;
+  double crease_share_20 = 0;  ///< creased_edges_20 / interior_edges (0 without interior edges)
 };
+
+/// Interior edges and creases of a set of faces of a mesh.
+struct CreaseCount {
+  std::size_t interior_edges = 0;  ///< edges shared by exactly two of the faces (both non-degenerate)
+  std::size_t creased = 0;         ///< of those, the ones whose faces bend by more than the angle
+  double share() const { return interior_edges ? double(creased) / double(interior_edges) : 0.0; }
+};
+
+/// Count creases among `faces` (indices into m.faces; empty = every face): an
+/// edge shared by exactly two of them is interior; it is creased when the angle
+/// between the two face normals exceeds `angle_deg` degrees. When the two faces
+/// run through the edge in the same direction (inconsistent orientation) one
+/// normal is flipped first, so the bend does not depend on orientation. Edges
+/// with a zero-area face are left out. A flat fan has no creases; a cube
+/// triangulated into 12 triangles has 18 interior edges, 12 of them creased (90°).
+CreaseCount count_creases(const Mesh& m, const std::vector<int>& faces = {}, double angle_deg = 20);
 
 MeshQuality mesh_quality(const Mesh& m, const MeshQualityParams& p = {});
 
@@ -47,7 +68,8 @@ MeshQuality mesh_quality(const Mesh& m, const MeshQualityParams& p = {});
 Json to_json(const MeshQuality& q);
 
 /// Check `requirements`, a comma-separated list such as
-/// "rr_min>=0.3,rr_mean>=0.94,valence6>=0.65,watertight,manifold,genus=0,no_self_intersections".
+/// "rr_min>=0.3,rr_mean>=0.94,valence6>=0.65,crease_share_20<=0.03,watertight,manifold,genus=0,
+/// no_self_intersections".
 /// Returns the failed ones (empty = all met). \throw UsageError for an unknown key.
 std::vector<std::string> check_requirements(const MeshQuality& q, const std::string& requirements);
 

@@ -27,6 +27,11 @@ struct InterfaceQuality {
   std::size_t bad_edges = 0;
   std::size_t self_faces = 0;  ///< faces with label_a == label_b
   std::vector<std::pair<int, int>> pairs;  ///< distinct (min, max) label pairs
+  /// Creases (20 degrees) of each interface, the faces of one label pair on their
+  /// own: its interior edges are those shared by two of its faces (junction curves
+  /// bound an interface and are not counted). overall.crease_share_20 and
+  /// overall.interior_edges / creased_edges_20 are these pooled over every interface.
+  std::map<std::pair<int, int>, CreaseCount> pair_creases;
   /// Each material's surface: the faces that separate it from another
   /// material, oriented outward (faces are shared exactly with neighbours).
   std::map<int, MeshQuality> materials;
@@ -48,7 +53,8 @@ InterfaceQuality interface_quality(const Mesh& m, const MeshQualityParams& p = {
 Mesh material_from_interfaces(const Mesh& m, int label);
 
 /// JSON: {"overall": {...}, "interfaces": {edges, boundary_edges, junction_edges,
-/// bad_edges, self_faces, pairs, ...}, "materials": {"<label>": {...}}}.
+/// bad_edges, self_faces, pairs, crease_share_20, per_pair: [{pair, interior_edges,
+/// creased_edges, crease_share_20}], ...}, "materials": {"<label>": {...}}}.
 Json to_json(const InterfaceQuality& q);
 
 /// Check requirements on an interface mesh. Keys as check_requirements, where
@@ -57,6 +63,7 @@ Json to_json(const InterfaceQuality& q);
 ///  no_self_intersections = no material surface self-intersects,
 ///  labels_consistent     = no face separates a label from itself,
 ///  rr_min / rr_mean / min_angle thresholds hold overall AND for every material;
+///  crease_share_20       = the creases of every interface pooled (overall);
 /// other keys (valence6, edge_le_2h, ...) apply to the whole mesh.
 /// Returns the failed items. \throw UsageError for an unknown key.
 std::vector<std::string> check_interface_requirements(const InterfaceQuality& q, const std::string& requirements);

@@ -34,7 +34,19 @@ struct RenderParams {
   /// the default size it turns meshes of more than ~100k faces dark.
   bool edges = false;
   std::string up = "z";  ///< world axis that points up on screen: "x", "y" or "z"
+  /// With a face int colour (color_by): a key in the top-left corner, one flat
+  /// swatch per value present with its name: "A-B" (label_a-label_b) when the
+  /// mesh is an interface mesh (face ints label_a, label_b), else the value.
+  bool legend = false;
+  /// Clip (mesh mode): "" = none, or "x", "y", "z" optionally with ":F", the
+  /// plane at fraction F (0..1, default 0.5) of the bounding box along that world
+  /// axis; faces whose centroid lies on the camera's side of it are not drawn,
+  /// so inner materials show. The camera stays fitted to the whole mesh.
+  std::string clip;
 };
+
+/// Colour of face category v (the palette `color_by` uses for face ints; it repeats every 12).
+Vec3 category_color(int v);
 
 /// Orthographic camera: a sphere around the points (centred on their bounding
 /// box, radius: the farthest point plus a margin), seen along `forward`, fills
@@ -76,7 +88,7 @@ double mean_nearest_neighbor_distance(const std::vector<Vec3>& points);
 /// outward (from nx ny nz, else computed from the faces): points facing away
 /// from the camera are culled. Points without normals (and no faces) are drawn
 /// as camera-facing disks. Mesh triangles are shaded two-sided (either winding).
-/// \throw UsageError for bad params (size, mode, up); InputError when m has no
+/// \throw UsageError for bad params (size, mode, up, clip); InputError when m has no
 /// vertices, fails validate(), mode "mesh" has no faces, or color_by names no
 /// property (the message lists the available ones).
 Image render(const Mesh& m, const RenderParams& params);

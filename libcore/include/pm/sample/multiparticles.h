@@ -84,6 +84,8 @@ struct MultiParticleParams {
   double projection_tolerance = 0;  ///< largest |f_a - f_b| on a cell, world units (0 = 1e-6 × the fields' resolution)
   std::uint64_t seed = 1;
   bool progress = true;
+  double settled_move = 0;  ///< settled-particle skipping, see ParticleParams::settled_move (0 = off)
+  int reproject_steps = engine_constants::kReprojectSteps;  ///< (Gauss-)Newton steps after a tangent move (>= 1)
 };
 
 /// Per-level counts (level 0: quadruple points, 1: triple curves, 2: surfaces).
@@ -114,6 +116,7 @@ struct MultiParticleResult {
   std::array<MultiLevelStats, 3> levels;
   double max_residual = 0;
   std::uint64_t field_evaluations = 0;
+  EngineStats engine;  ///< the engine's counters over all levels (updates, trials, rejections, failures, ...)
   /// Pairs of surface particles of two interfaces sharing a material, closer
   /// than h/4, replaced by one particle on their triple junction.
   std::size_t junction_repairs = 0;

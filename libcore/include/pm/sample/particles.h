@@ -27,13 +27,9 @@
 #include "pm/base/vec.h"
 #include "pm/field/field.h"
 #include "pm/field/sizing.h"
+#include "pm/sample/engine.h"
 
 namespace pm {
-
-enum class ParticleEnergy {
-  cotangent,  ///< modified cotangent, E = cot(π|r|/2) + π|r|/2 - π/2 (default)
-  radial,     ///< radial, E = (1/|r|)(1 - |r|)²
-};
 
 struct ParticleParams {
   double iso = 0;              ///< isovalue c; the surface is F = c
@@ -65,6 +61,15 @@ struct ParticleParams {
                                ///< levels k = floor(log2(coarse_start / s)), with a sizing field s = median h
   std::uint64_t seed = 1;      ///< random seed
   bool progress = true;        ///< report through pm::Progress (stderr, tool-controlled)
+  /// Settled-particle skipping (EngineParams::settled_move): fraction of the
+  /// local spacing below which a particle whose neighbourhood also moved
+  /// less counts as settled (0 = off).
+  double settled_move = 0;
+  /// Seeds closer than this fraction of the starting local spacing to a kept
+  /// seed are dropped before relaxing (0 = keep all; every seed still
+  /// anchors its component).
+  double seed_thinning = 0;
+  int reproject_steps = engine_constants::kReprojectSteps;  ///< (Gauss-)Newton steps after a tangent move (>= 1)
 };
 
 struct ParticleResult {
@@ -78,6 +83,7 @@ struct ParticleResult {
   int levels = 1;                 ///< coarse-to-fine levels run (1 = single level)
   bool converged = false;         ///< the last level converged with a stable population
   std::size_t splits = 0, deletions = 0;
+  std::size_t thinned = 0;         ///< seeds dropped by seed_thinning
   std::size_t dropped_init = 0;   ///< initial points / seeds whose projection failed
   /// Particles re-inserted on the final level at initial points left without
   /// a particle nearby (a component emptied on a coarse level; see below).
@@ -90,15 +96,11 @@ struct ParticleResult {
   std::uint64_t field_evaluations = 0;  ///< calls to F (value, gradient or Hessian)
   std::uint64_t particle_updates = 0;   ///< particle moves attempted (Σ particles over sweeps)
   std::uint64_t list_builds = 0;        ///< neighbour-list (and bin) rebuilds, <= iterations
+  EngineStats engine;                   ///< the engine's counters (trials, rejections, failures, ...)
   /// Wall-clock seconds: initial projection; sweeps (with binning); population
   /// control, energy measurements and coarse-to-fine splits; final measurements.
   double seconds_init = 0, seconds_relax = 0, seconds_population = 0, seconds_finish = 0;
 };
-
-/// Ideal energy of one particle, 6 E(β) (hexagonal 1-ring at |r| = β).
-double particle_ideal_energy(ParticleEnergy e);
-/// Pair energy E(r) and dE/dr for |r| < 1 (0 beyond); ε_r is not added here.
-double particle_pair_energy(ParticleEnergy e, double r, double& dE_dr);
 
 /// Distribute particles on F = iso.
 ///   field:  the implicit; must be C¹ (C² for density > 0) and safe to

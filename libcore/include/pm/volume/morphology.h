@@ -86,6 +86,14 @@ Volume closing(const Volume& mask, const MorphParams& p = {});
 /// A background label 0 is an ordinary label: passive unless listed in
 /// `labels` (then it is opened/closed like any material, e.g. Table 6.1's
 /// air) and a voter either way.
+/// No stage erases a material (a label present in the input) silently: when
+/// the morphology would leave a processed label no voxel, its input voxels are
+/// given back to it (a passive label that processed labels' dilations cover
+/// is not kept: that was asked for); when downsampling would, the output voxel whose block holds most of it
+/// (and whose own label keeps other voxels) takes it; when min_component would
+/// remove every component of a label, its largest component stays. Each case is
+/// listed in LabelMorphResult::kept (the caller warns); a label that cannot be
+/// kept (a downsampled grid with fewer voxels than labels) is listed in `lost`.
 struct LabelMorphParams {
   std::vector<MorphStep> steps;  ///< applied to every processed label
   /// Sequences for particular labels: override `steps` for them, and make
@@ -103,8 +111,17 @@ struct LabelMorphParams {
   std::size_t min_component = 0;
 };
 
+/// A material that a stage of morph_labels would have erased and kept instead.
+struct KeptLabel {
+  std::int64_t label = 0;
+  std::string stage;       ///< "morphology", "downsample" or "min_component"
+  std::size_t voxels = 0;  ///< voxels it kept (at that stage's resolution)
+};
+
 struct LabelMorphResult {
   Volume labels;  ///< input voxel type; downsampled dims and geometry
+  std::vector<KeptLabel> kept;      ///< materials kept against the stage (see morph_labels)
+  std::vector<std::int64_t> lost;   ///< materials that could not be kept (downsampled grid too small)
   std::map<std::int64_t, std::size_t> counts_before, counts_after;
   std::size_t empty = 0;        ///< empty voxels after step 3
   std::size_t vote_rounds = 0;  ///< voting rounds run (0 without vote)

@@ -70,6 +70,23 @@ struct TightenResult {
   std::size_t inside_voxels = 0;  ///< inside voxels of the input mask
 };
 
+/// Defaults taken from the volume's header and size (`tighten --radius auto
+/// --upsample auto`):
+///  * upsample: 1 when every axis has at least kTightenMinVoxels voxels; else the
+///    smallest K with K * (smallest axis) >= 2 * kTightenMinVoxels, at most 8 (a 2x2x2
+///    label map gets 8), so that tiny volumes have room for a smooth surface;
+///  * radius: the largest voxel spacing (world units), so slice terraces of
+///    anisotropic scans are smoothed away; divided by the automatic upsampling
+///    factor when that is > 1 (the voxels of a tiny volume are its features).
+/// A downsampled input (morph --downsample) has the larger spacing already.
+struct TightenDefaults {
+  double radius = 0;  ///< world units
+  int upsample = 1;
+};
+constexpr std::size_t kTightenMinVoxels = 8;
+/// `radius` <= 0 and `upsample` <= 0 mean auto; given values are returned as they are.
+TightenDefaults tighten_defaults(const Volume& v, double radius, int upsample);
+
 /// Inside flags (1/0) of a binary mask: exactly two distinct voxel values, the
 /// larger one is inside. \throw InputError naming `what` for one value
 /// ("empty mask") or more than two ("expected a binary mask (2 distinct

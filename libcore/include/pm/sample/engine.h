@@ -1,0 +1,520 @@
+#pragma once
+// The one particle engine of libcore (SPEC §3, Meyer 2008 Chapters 3-7):
+// particles constrained to a set (a surface, a junction curve, an element's
+// reference space, a volume) relax with a compact pair energy until they
+// settle in a near-hexagonal (or, in volumes, near-close) packing.
+//
+// The seam. A *constraint* C says what a particle is constrained to:
+//   * the state a particle carries (C::State: a gradient, a junction cell,
+//     an element id and reference coordinates, ...) next to its world point
+//     and normal (SamplePoint<State>);
+//   * place(): project a world point onto the set (seeds, split children);
+//   * tangent() / move(): the tangent-space part of a move and its
+//     re-projection;
+//   * dimension(), ideal_neighbours(), split_below(), delete_above(): the
+//     ideal energy n E(β) and the population thresholds of a particle;
+//   * children(): where the particles of a split go;
+//   * sees() / same_cell(): which particles interact and which pairs are
+//     normal-weighted (culling far sides of thin parts).
+// The engine owns the rest: pair energies and normal weighting, the pair
+// scale α_ij (uniform, curvature-adaptive or sizing field, per-type
+// factors), the counter RNG, bins and their 8-colour parallel Gauss-Seidel
+// sweeps, cached neighbour lists, the adaptive step, population control,
+// fixed particles (lower levels), coarse-to-fine, convergence, statistics
+// and progress.
+//
+// The engine is a template over the constraint (static polymorphism: the
+// inner loops call the constraint without virtual dispatch); it is
+// instantiated in the constraint's .cpp file (sample/surface_constraint.cpp,
+// sample/junction_constraint.cpp, ...), so only those compile this header's
+// template code.
+//
+// Scale convention (pm/sample/particles.h): r_ij = α_ij (x_i - x_j), σ = 1,
+//   curvature mode: α_ij = β (1 + ρ s C_ij / (2π)) / (k s), capped;
+//   sizing mode:    α_ij = β / (k min(h_i, h_j)), floored;
+// β = 0.5/cos(π/6), k the coarse-to-fine / fixed-count scale; typed
+// particles divide α_ij by the type pair's distance factor t(T_i, T_j).
+//
+// Determinism: particles are processed Gauss-Seidel in bin order; bins are
+// coloured (bx%2, by%2, bz%2) and only bins of one colour run in parallel
+// (>= 2 bins apart: none reads what another writes), so the result is
+// bit-identical for any thread count. Randomness is a counter-based hash of
+// (seed, particle id, iteration, stream).
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "pm/base/log.h"
+#include "pm/base/parallel.h"
+#include "pm/base/stats.h"
+#include "pm/base/vec.h"
+#include "pm/field/sizing.h"
+
+namespace pm {
+
+enum class ParticleEnergy {
+  cotangent,  ///< modified cotangent, E = cot(π|r|/2) + π|r|/2 - π/2 (default)
+  radial,     ///< radial, E = (1/|r|)(1 - |r|)²
+};
+
+/// Ideal energy of one surface particle, 6 E(β) (hexagonal 1-ring at |r| = β).
+double particle_ideal_energy(ParticleEnergy e);
+/// Pair energy E(r) and dE/dr for |r| < 1 (0 beyond); ε_r is not added here.
+double particle_pair_energy(ParticleEnergy e, double r, double& dE_dr);
+
+// ---------------------------------------------------------------------------
+// Constants of the particle system, named once (SPEC §3 parameter table).
+namespace engine_constants {
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kEpsR = 1e-7;               ///< added to |r|
+constexpr double kGamma = 0.156;             ///< normal weighting threshold
+constexpr double kLambda0 = 1.0;             ///< initial step factor
+constexpr double kLambdaMin = 1e-14;         ///< below this a particle stays put
+constexpr double kLambdaFactor = 10.0;       ///< step factor change after a rejected / first-try accepted move
+/// λ_i <= 100 s_i² (world units² per energy unit): one name for what the two
+/// old engines called kLambdaMaxPerS2 and kLambdaMaxPerH2 (both 100).
+constexpr double kLambdaMaxPerSpacing2 = 100.0;
+constexpr int kPlaceSteps = 20;              ///< projection steps for seeds and new particles
+/// Re-projection steps after a tangent move. The old engines used 4 (surface
+/// Newton) and 6 (junction Gauss-Newton); 4 is kept for both: the README's
+/// measurement shows the same rejected-trial rate and quality with fewer
+/// field evaluations (both converge quadratically from a tangent step).
+constexpr int kReprojectSteps = 4;
+constexpr double kSplitOffset = 0.5;         ///< a split child is placed this many local spacings away
+constexpr double kQuadOffset = 0.25;         ///< coarse-to-fine children: ± this many spacings along two tangents
+constexpr double kSizingSlack = 1.25;        ///< sizing: pair radius cap = 1.25 × largest h / β
+constexpr double kSpacingSlack = 1.5;        ///< a move may grow the local spacing by at most this factor
+constexpr int kColours = 8;                  ///< bin colours (bx%2, by%2, bz%2)
+constexpr std::size_t kSerialBelow = 2000;   ///< sweeps of fewer particles run on one thread
+constexpr double kGatherMargin = 0.25;       ///< first gather covers trial moves up to 0.25 s_i
+constexpr double kListSkin = 0.5;            ///< neighbour lists: a particle may drift 0.5 s_i before a rebuild
+constexpr double kListsBelowMove = 0.25 * kListSkin;  ///< use lists once the largest move is below this (× s_i)
+constexpr double kHoleRadius = 1.5;          ///< an anchor without a particle within 1.5 s_i is a hole
+constexpr int kMaxRefills = 4;               ///< refill rounds on the final level
+constexpr int kMaxTypes = 4;                 ///< particle types (pair scale table is kMaxTypes²)
+/// Fixed count: near the hexagonal packing E ∝ s^4.7 (cotangent), hence
+/// the exponent 1/5 of the spacing correction, clamped to [1/2, 2].
+constexpr double kCountExponent = 0.2, kCountClamp = 2.0, kCountSettled = 0.01;
+}  // namespace engine_constants
+
+/// β = 0.5/cos(π/6): the hexagonal 1-ring sits at |r| = β.
+double engine_beta();
+/// Normal weighting w(n_i · n_j) of SPEC §3 (1 above γ, 0 at or below 0).
+double normal_weight(double d);
+/// Counter-based uniform number in [0, 1) of (seed, id, iteration, stream).
+double counter_uniform(std::uint64_t seed, std::uint64_t id, std::uint64_t iter, std::uint64_t stream);
+std::uint64_t mix64(std::uint64_t z);
+/// A unit tangent basis (t1, t2) of the plane normal to the unit vector n.
+void tangent_basis(const Vec3& n, Vec3& t1, Vec3& t2);
+/// The tangent-plane offset of length dist at `angle` in tangent_basis(n).
+Vec3 tangent_offset(const Vec3& n, double angle, double dist);
+/// Four offsets ±a ± b in the tangent plane of n, a and b orthogonal of
+/// length dist turned by theta (coarse-to-fine children). Returns 4.
+int quad_children(const Vec3& n, double theta, double dist, Vec3* out);
+/// Greedy thinning in input order: point i is dropped when a kept point of
+/// its group (group[i]; empty = one group) lies closer than radius[i]
+/// (world units). Returns the kept indices, ascending. Deterministic.
+std::vector<std::size_t> thin_points(const std::vector<Vec3>& x, const std::vector<double>& radius,
+                                     const std::vector<std::int32_t>& group);
+/// "%.6g" and "(x, y, z)" for messages.
+std::string engine_fmt(double v);
+std::string engine_fmt(const Vec3& v);
+
+/// Random streams of the engine's counter RNG.
+enum EngineStream : std::uint64_t {
+  kStreamPopulation = 1, kStreamSplitDir, kStreamInitX, kStreamInitY, kStreamInitZ, kStreamQuad
+};
+
+/// Why a constraint could not project a point.
+enum class ProjectFailure : int {
+  none = 0,
+  non_finite,      ///< the field is not finite at an iterate
+  flat,            ///< zero (or singular) gradient
+  left_domain,     ///< an iterate left the domain
+  no_convergence,  ///< not within tolerance after the allowed steps
+  not_dominant,    ///< junction: another material is above the cell's
+  outside_sizing,  ///< the sizing field does not cover the point
+  count_
+};
+const char* project_failure_name(ProjectFailure f);
+
+/// Book-keeping of one projection: field evaluations and the failure reason.
+struct Probe {
+  std::uint64_t evaluations = 0;
+  ProjectFailure why = ProjectFailure::none;
+  bool fail(ProjectFailure f) {
+    why = f;
+    return false;
+  }
+};
+
+/// A particle's constrained position: world point, unit normal (surfaces) or
+/// frame (curve tangent), and the constraint's own state.
+template <class State>
+struct SamplePoint {
+  Vec3 x;
+  Vec3 n;
+  State s{};
+};
+
+/// Counters of a run, shared by every configuration of the engine.
+struct EngineStats {
+  std::uint64_t updates = 0;            ///< particle updates (an energy + force evaluation, then trials)
+  std::uint64_t trials = 0;             ///< trial positions evaluated
+  std::uint64_t rejected = 0;           ///< trials rejected (energy up, off the constraint, too long)
+  std::uint64_t settled_skips = 0;      ///< updates skipped because the particle's neighbourhood settled
+  std::uint64_t field_evaluations = 0;  ///< field / constraint evaluations
+  std::uint64_t list_builds = 0;
+  std::uint64_t place_failures = 0;     ///< seeds and new particles the constraint could not place (dropped)
+  std::uint64_t trial_failures = 0;     ///< trial moves the constraint could not re-project (step shrinks)
+  std::uint64_t failures_by_reason[int(ProjectFailure::count_)] = {};  ///< place + trial failures
+  /// Particle updates in which the constraint could not project a single
+  /// trial down to λ_min (the particle stays where it is; the run goes on).
+  std::uint64_t stuck = 0;
+  std::uint64_t first_stuck_id = ~std::uint64_t(0);  ///< the smallest id stuck in the first sweep with any
+  std::string first_failure;            ///< "particle N at (x, y, z): reason" (empty when none)
+  double seconds_relax = 0;             ///< wall-clock seconds in sweeps (updates/s = updates / seconds_relax)
+  double seconds_population = 0;
+};
+
+/// The counters as a JSON object for --stats (updates, trials,
+/// rejected_trials, field_evaluations, updates_per_second, ...).
+Json engine_stats_json(const EngineStats& s);
+/// One line for a warning when particles could not be projected, else empty.
+std::string engine_failure_summary(const EngineStats& s);
+
+/// How the engine turns a particle into a local spacing (see the scale
+/// convention above).
+struct EngineParams {
+  ParticleEnergy energy = ParticleEnergy::cotangent;
+  double tolerance = 0.0015;
+  int max_iters = 2000;
+  int population_interval = 50;
+  double population_tolerance = 0.001;
+  bool population_control = true;
+  std::uint64_t seed = 1;
+  bool progress = true;
+  /// Curvature mode (spacing s, density ρ, alpha_cap) when sizing_mode is
+  /// false; else sizing mode with h(x) from `sizing` or the constant
+  /// `spacing` when sizing is null.
+  bool sizing_mode = false;
+  const SizingField* sizing = nullptr;
+  double spacing = 0, density = 0, alpha_cap = 10;
+  /// A deleted particle must leave a staying particle of its cell within its
+  /// interaction radius (keeps short curves populated).
+  bool keep_covered = false;
+  /// Per-type pair distance factors t(a, b) (symmetric), see set_types().
+  int types = 1;
+  double type_scale[engine_constants::kMaxTypes][engine_constants::kMaxTypes] = {{1, 1, 1, 1}, {1, 1, 1, 1},
+                                                                                 {1, 1, 1, 1}, {1, 1, 1, 1}};
+  /// Skip updating a particle whose last accepted move was shorter than
+  /// this fraction of its spacing and whose neighbours did not move more than
+  /// that either, re-checking it every `settled_recheck` sweeps (0 = off).
+  double settled_move = 0;
+  int settled_recheck = 8;
+  int reproject_steps = engine_constants::kReprojectSteps;  ///< constraint steps after a tangent move
+};
+
+/// Copy the relaxation settings every configuration's params struct names
+/// alike (energy, tolerance, max_iters, population_interval,
+/// population_tolerance, seed, progress, settled_move, reproject_steps).
+template <class P>
+void copy_relax_params(const P& p, EngineParams& e) {
+  e.energy = p.energy;
+  e.tolerance = p.tolerance;
+  e.max_iters = p.max_iters;
+  e.population_interval = p.population_interval;
+  e.population_tolerance = p.population_tolerance;
+  e.seed = p.seed;
+  e.progress = p.progress;
+  e.settled_move = p.settled_move;
+  e.reproject_steps = p.reproject_steps;
+}
+
+/// The rules of particles on a 2-manifold in world space (hexagonal
+/// packing): a mix-in for constraints whose SamplePoint normal is the unit
+/// surface normal.
+struct SurfaceRules {
+  template <class P> int dimension(const P&) const { return 2; }
+  template <class P> double ideal_neighbours(const P&) const { return 6; }
+  template <class P> double split_below(const P&) const { return 0.35; }
+  template <class P> double delete_above(const P&) const { return 1.75; }
+  /// A point `dist` away in the tangent plane at angle 2πu.
+  template <class P> Vec3 split_offset(const P& p, double u, double dist) const {
+    return tangent_offset(p.n, 2 * engine_constants::kPi * u, dist);
+  }
+  /// Coarse-to-fine: the 4 quad_children of the tangent plane.
+  template <class P> int children(const P& p, double theta, double dist, Vec3* out) const {
+    return quad_children(p.n, theta, dist, out);
+  }
+  template <class P> Vec3 tangent(const P& p, const Vec3& v) const { return v - p.n * dot(p.n, v); }
+  template <class P> bool sees(const P&, const P&, bool) const { return true; }
+  template <class P> bool weighted(const P&) const { return true; }
+  template <class P> bool same_cell(const P&, const P&) const { return true; }
+};
+
+/// Distance factors for two-type quad packing (Meyer 2008, Chapter 7):
+/// like pairs sit √2 farther apart than unlike pairs (the diagonal of a
+/// checkerboard square), t(a, a) = √2, t(a, b) = 1.
+void set_quad_types(EngineParams& p);
+
+/// Uniform bins of one width over a point set, the 3x3x3 block of every
+/// bin, and the 8 colour classes of the bins holding active points.
+class SampleBins {
+ public:
+  /// Sorts the points into bins of width >= w; order() maps new index ->
+  /// old index (stable within a bin). `active` (#N or empty = all) marks
+  /// points that will be updated: only bins holding one are coloured.
+  void build(const std::vector<Vec3>& x, double w, const std::vector<char>& active);
+  const std::vector<std::uint32_t>& order() const { return order_; }
+  std::size_t cells() const { return cell_key_.size(); }
+  std::uint32_t begin(std::size_t c) const { return cell_start_[c]; }
+  std::uint32_t end(std::size_t c) const { return cell_start_[c + 1]; }
+  const std::int32_t* block(std::size_t c) const { return &cell_nbr_[c * 27]; }
+  std::uint32_t colour_begin(int k) const { return colour_start_[std::size_t(k)]; }
+  std::uint32_t colour_end(int k) const { return colour_start_[std::size_t(k) + 1]; }
+  std::uint32_t colour_cell(std::uint32_t k) const { return colour_cells_[k]; }
+  /// Per axis, bit 0/1/2: the -1/0/+1 neighbour of cell c may hold a point
+  /// within `slack` of x. Combined as mask >> (k%3), >> (k/3%3), >> (k/9).
+  void axis_masks(std::size_t c, const Vec3& x, double slack, int m[3]) const;
+  /// Cell holding x, or -1 (x outside the grid or an empty bin); the 3x3x3
+  /// block of that bin position (cells may be -1).
+  bool block_of(const Vec3& x, std::int32_t out[27]) const;
+  double width() const { return w_; }
+
+ private:
+  std::int32_t find(std::uint64_t key) const;
+  std::vector<std::uint64_t> keys_, keys_tmp_;
+  std::vector<std::uint32_t> order_, order_tmp_, radix_count_;
+  std::vector<std::uint64_t> cell_key_;
+  std::vector<std::uint32_t> cell_start_;
+  std::vector<std::int32_t> cell_nbr_;
+  std::vector<std::uint32_t> hash_;
+  std::vector<std::uint32_t> colour_start_, colour_cells_;
+  std::uint64_t nx_ = 0, ny_ = 0, nz_ = 0;
+  Vec3 lo_;
+  double w_ = 1;
+};
+
+/// The engine. C is a constraint as described above.
+template <class C>
+class ParticleEngine {
+ public:
+  using State = typename C::State;
+  using Point = SamplePoint<State>;
+
+  struct Particle {
+    Point p;
+    double attr = 0;     // curvedness (curvature mode) or h(x) (sizing mode)
+    double spacing = 0;  // local spacing β/α_ii (also the step cap)
+    double lambda = engine_constants::kLambda0;
+    double energy = 0;
+    double delta = 0;    // energy change of the last move (<= 0)
+    double moved = 0;    // length of the last move / spacing
+    std::uint64_t id = 0;
+    std::int32_t neighbours = 0;
+    std::uint8_t type = 0;
+    bool fixed = false;
+    std::uint16_t quiet = 0;  // sweeps since the particle last moved more than settled_move
+  };
+
+  /// A point to place: where, like which particle (the constraint's state,
+  /// e.g. the junction cell), of which type.
+  struct Candidate {
+    Vec3 x;
+    Point like;
+    std::uint8_t type = 0;
+  };
+
+  ParticleEngine(const C& c, const EngineParams& p);
+
+  // --- population -------------------------------------------------------
+  /// Place candidates in parallel (up to `steps` constraint steps, each
+  /// step at most max_step[i] long when given); ok[i] says which succeeded,
+  /// placed[i] the result. Outside the sizing field's box counts as failed
+  /// with reason outside_sizing (outside[i] = 1).
+  void place_many(const std::vector<Candidate>& cands, int steps, const std::vector<double>& max_step,
+                  std::vector<Point>& placed, std::vector<char>& ok, std::vector<char>* outside = nullptr);
+  /// Append a particle at a placed point; returns its index.
+  std::size_t add(const Point& q, std::uint8_t type = 0, bool fixed = false);
+  void fix_all() {
+    for (Particle& q : parts_) q.fixed = true;
+  }
+  std::size_t active_count() const;
+  /// The projected initial points become anchors: on the final level every
+  /// anchor keeps a particle within kHoleRadius local spacings.
+  void set_anchors_from_particles() { anchors_ = parts_; }
+  void guard_anchors() { guard_anchors_ = true; }
+  std::size_t refill_holes();
+
+  // --- scale ------------------------------------------------------------
+  void set_scale(double k);
+  double scale() const { return scale_; }
+  double planar_spacing() const { return s_; }
+  void refresh_spacings() {
+    for (Particle& q : parts_) q.spacing = local_spacing(q.attr, q.type);
+  }
+
+  // --- relaxation -------------------------------------------------------
+  struct LevelResult {
+    bool converged = false;
+    int iterations = 0;
+    std::size_t splits = 0, deletions = 0, refilled = 0;
+  };
+  /// Relax the active particles until the energy converges with a stable
+  /// population (population control or, with fixed_count, the spacing scale).
+  LevelResult relax(const std::string& label, bool fixed_count);
+  /// Coarse-to-fine: replace every particle by its constraint children
+  /// (placed), then halve the scale.
+  void split_all();
+  /// Fresh (Jacobi) energies and neighbour counts; returns Σ E_i over the
+  /// active particles.
+  double measure();
+
+  // --- access -----------------------------------------------------------
+  /// Reorder the particles stably by key(particle) (ascending).
+  template <class Key>
+  void stable_order(Key key) {
+    std::stable_sort(parts_.begin(), parts_.end(),
+                     [&](const Particle& a, const Particle& b) { return key(a) < key(b); });
+  }
+  /// Positions, normals, energies and local spacings (#N each) in the
+  /// current order.
+  void export_points(std::vector<Vec3>& x, std::vector<Vec3>& n, std::vector<double>& energy,
+                     std::vector<double>& spacing) const {
+    const std::size_t count = parts_.size();
+    x.resize(count);
+    n.resize(count);
+    energy.resize(count);
+    spacing.resize(count);
+    for (std::size_t i = 0; i < count; ++i) {
+      x[i] = parts_[i].p.x;
+      n[i] = parts_[i].p.n;
+      energy[i] = parts_[i].energy;
+      spacing[i] = parts_[i].spacing;
+    }
+  }
+  std::vector<Particle>& particles() { return parts_; }
+  const std::vector<Particle>& particles() const { return parts_; }
+  const EngineStats& stats() const { return st_; }
+  EngineStats& stats() { return st_; }
+  std::uint64_t iteration() const { return iteration_; }
+  const C& constraint() const { return c_; }
+  /// Ideal energy n E(β) of particle q.
+  double ideal_energy(const Particle& q) const { return c_.ideal_neighbours(q.p) * e_beta_; }
+  /// Pair scale α_ij of two particles.
+  double pair_alpha(const Particle& a, const Particle& b) const {
+    return alpha(a.attr, b.attr, a.type, b.type);
+  }
+  /// Bins over the current particles (valid after measure()/rebin()) and a
+  /// scan of the particles within `r` of x: f(index) for each.
+  template <class F>
+  void for_each_near(const Vec3& x, double r, F&& f) const {
+    std::int32_t block[27];
+    if (!bins_.block_of(x, block)) return;
+    for (int k = 0; k < 27; ++k) {
+      if (block[k] < 0) continue;
+      const std::size_t c = std::size_t(block[k]);
+      for (std::uint32_t q = bins_.begin(c); q < bins_.end(c); ++q)
+        if (norm2(pos_[q] - x) < r * r) f(std::size_t(q));
+    }
+  }
+  void rebin(bool for_lists = false);
+
+ private:
+  struct Cand {
+    Vec3 x, n;
+    double attr;
+    std::uint8_t type;
+    bool weighted;
+  };
+
+  double alpha(double ai, double aj, std::uint8_t ti, std::uint8_t tj) const {
+    double a;
+    if (!p_.sizing_mode) {
+      a = std::min(beta_ * (1.0 + k_curv_ * 0.5 * (ai + aj)) / s_, alpha_cap_);
+    } else {
+      a = std::max(beta_ / (scale_ * std::min(ai, aj)), alpha_floor_);
+    }
+    return typed_ ? a / p_.type_scale[ti][tj] : a;
+  }
+  double local_spacing(double attr, std::uint8_t type) const {
+    (void)type;
+    if (!p_.sizing_mode) return beta_ / std::min(beta_ * (1.0 + k_curv_ * attr) / s_, alpha_cap_);
+    return scale_ * attr;
+  }
+  // Upper bound on the interaction radius 1/α_ij of a particle with local
+  // spacing `spacing` and any partner (curvature mode: 2 s_i with density,
+  // s otherwise; sizing: min(h_i, h_j) <= h_i), times the largest type factor.
+  double radius_bound(double spacing) const {
+    return std::min(r_max_, (need_curvature_ ? 2.0 : 1.0) * spacing / beta_) * type_max_;
+  }
+  bool varying() const { return need_curvature_ || p_.sizing_mode; }
+  // The adaptivity attribute of a placed point; false outside the sizing field.
+  bool attribute(const Point& q, double& a) const {
+    if (!p_.sizing_mode) {
+      a = need_curvature_ ? c_.curvedness(q) : 0.0;
+      return true;
+    }
+    if (!p_.sizing) {
+      a = p_.spacing;
+      return true;
+    }
+    return p_.sizing->sample(q.x, a) && a > 0;
+  }
+  Particle make(const Point& q, double attr, std::uint64_t id, std::uint8_t type) const;
+
+  double energy_at(const Vec3& x, const Vec3& n, double a, std::uint8_t t, const std::vector<Cand>& cs, Vec3* v,
+                   int* nbrs) const;
+  Cand cand_of(const Particle& i, const Particle& o) const {
+    return {o.p.x, o.p.n, o.attr, o.type, c_.weighted(i.p) && c_.same_cell(i.p, o.p)};
+  }
+  bool sees(const Particle& i, const Particle& o) const { return c_.sees(i.p, o.p, o.fixed); }
+  void gather(const Vec3& x, double reach, std::size_t self, std::size_t cell, std::vector<Cand>& out) const;
+  void gather_list(const Vec3& x, double reach, std::size_t self, std::vector<Cand>& out) const;
+  void update(std::size_t i, std::size_t cell, std::vector<Cand>& buf, EngineStats& local);
+  void build_lists();
+  bool lists_stale() const;
+  double sweep(double& energy);
+  bool population_control(std::uint64_t tag, bool final_check, LevelResult& lr);
+  bool adapt_spacing();
+  std::int64_t anchor_cover(const Particle& a, const std::vector<char>* dead) const;
+  void keep_anchor_covers(std::vector<char>& del, std::size_t& ndel) const;
+  void keep_covered(std::vector<char>& del, std::size_t& ndel) const;
+  void merge(const EngineStats& local);
+
+  const C& c_;
+  EngineParams p_;
+  double beta_ = 0, e_beta_ = 0;
+  bool need_curvature_ = false, typed_ = false;
+  double type_max_ = 1;
+  double scale_ = 1, s_ = 0, k_curv_ = 0, alpha_cap_ = 1e300, alpha_floor_ = 0;
+  double r_max_ = 0, d_max_ = 0;
+
+  std::vector<Particle> parts_, scratch_, anchors_;
+  bool guard_anchors_ = false;
+  std::vector<Vec3> pos_;
+  std::vector<char> active_;
+  std::uint64_t next_id_ = 0, iteration_ = 0;
+  SampleBins bins_;
+
+  std::vector<std::uint32_t> nbr_start_, nbr_;
+  std::vector<Vec3> list_x_;
+  std::vector<double> list_s_;
+  bool lists_valid_ = false, use_lists_ = false;
+  double max_move_ = 1e300;
+
+  tbb::enumerable_thread_specific<std::vector<Cand>> tls_;
+  tbb::enumerable_thread_specific<EngineStats> tls_stats_;
+  EngineStats st_;
+};
+
+}  // namespace pm

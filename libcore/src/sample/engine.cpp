@@ -1,0 +1,302 @@
+#include "pm/sample/engine.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <unordered_map>
+
+namespace pm {
+
+using namespace engine_constants;
+
+double engine_beta() {
+  static const double beta = 0.5 / std::cos(kPi / 6);
+  return beta;
+}
+
+double normal_weight(double d) {
+  if (d > kGamma) return 1.0;
+  if (d <= 0) return 0.0;
+  return std::cos(0.5 * kPi * (kGamma - d) / kGamma);
+}
+
+std::uint64_t mix64(std::uint64_t z) {
+  z += 0x9E3779B97F4A7C15ull;
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  return z ^ (z >> 31);
+}
+
+double counter_uniform(std::uint64_t seed, std::uint64_t id, std::uint64_t iter, std::uint64_t stream) {
+  std::uint64_t h = mix64(seed ^ 0x5851F42D4C957F2Dull);
+  h = mix64(h ^ id);
+  h = mix64(h ^ (iter * 0xD1B54A32D192ED03ull));
+  h = mix64(h ^ (stream * 0x8CB92BA72F3D8DD7ull));
+  return double(h >> 11) * 0x1.0p-53;
+}
+
+void tangent_basis(const Vec3& n, Vec3& t1, Vec3& t2) {
+  const Vec3 a = std::fabs(n.x) < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
+  t1 = normalized(cross(n, a));
+  t2 = cross(n, t1);
+}
+
+Vec3 tangent_offset(const Vec3& n, double angle, double dist) {
+  Vec3 t1, t2;
+  tangent_basis(n, t1, t2);
+  return (t1 * std::cos(angle) + t2 * std::sin(angle)) * dist;
+}
+
+int quad_children(const Vec3& n, double theta, double dist, Vec3* out) {
+  Vec3 t1, t2;
+  tangent_basis(n, t1, t2);
+  const Vec3 a = (t1 * std::cos(theta) + t2 * std::sin(theta)) * dist;
+  const Vec3 b = (t2 * std::cos(theta) - t1 * std::sin(theta)) * dist;
+  out[0] = a + b;
+  out[1] = b - a;
+  out[2] = -a - b;
+  out[3] = a - b;
+  return 4;
+}
+
+std::string engine_fmt(double v) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%.6g", v);
+  return b;
+}
+std::string engine_fmt(const Vec3& v) {
+  return "(" + engine_fmt(v.x) + ", " + engine_fmt(v.y) + ", " + engine_fmt(v.z) + ")";
+}
+
+const char* project_failure_name(ProjectFailure f) {
+  switch (f) {
+    case ProjectFailure::none: return "none";
+    case ProjectFailure::non_finite: return "the field is not finite at an iterate";
+    case ProjectFailure::flat: return "the gradient vanishes (singular system)";
+    case ProjectFailure::left_domain: return "the projection left the domain";
+    case ProjectFailure::no_convergence: return "the projection did not converge";
+    case ProjectFailure::not_dominant: return "another material is above the cell's";
+    case ProjectFailure::outside_sizing: return "outside the sizing field's box";
+    case ProjectFailure::count_: break;
+  }
+  return "unknown";
+}
+
+Json engine_stats_json(const EngineStats& s) {
+  Json fails = Json::object();
+  for (int k = 1; k < int(ProjectFailure::count_); ++k)
+    if (s.failures_by_reason[k]) fails[project_failure_name(ProjectFailure(k))] = s.failures_by_reason[k];
+  Json j = {{"updates", s.updates},
+            {"trials", s.trials},
+            {"rejected_trials", s.rejected},
+            {"settled_skips", s.settled_skips},
+            {"field_evaluations", s.field_evaluations},
+            {"list_builds", s.list_builds},
+            {"updates_per_second", s.seconds_relax > 0 ? double(s.updates) / s.seconds_relax : 0.0},
+            {"place_failures", s.place_failures},
+            {"trial_failures", s.trial_failures},
+            {"failures_by_reason", fails},
+            {"stuck_particles", s.stuck}};
+  if (!s.first_failure.empty()) j["first_stuck"] = s.first_failure;
+  return j;
+}
+
+std::string engine_failure_summary(const EngineStats& s) {
+  if (s.stuck == 0) return {};
+  return std::to_string(s.stuck) + " particle update(s) could not project any trial move and left the particle "
+         "in place; first: " + s.first_failure;
+}
+
+std::vector<std::size_t> thin_points(const std::vector<Vec3>& x, const std::vector<double>& radius,
+                                     const std::vector<std::int32_t>& group) {
+  // Spatial hash of cubes of the largest radius (large primes mix the indices).
+  constexpr std::uint64_t kHashX = 73856093ull, kHashY = 19349663ull, kHashZ = 83492791ull;
+  std::vector<std::size_t> kept;
+  if (x.empty()) return kept;
+  double rmax = 0;
+  for (double r : radius) rmax = std::max(rmax, r);
+  const double w = std::max(rmax, 1e-12);
+  auto key = [&](const Vec3& p, int dx, int dy, int dz) {
+    const std::int64_t ix = std::int64_t(std::floor(p.x / w)) + dx, iy = std::int64_t(std::floor(p.y / w)) + dy,
+                       iz = std::int64_t(std::floor(p.z / w)) + dz;
+    return mix64(std::uint64_t(ix) * kHashX ^ mix64(std::uint64_t(iy) * kHashY ^ mix64(std::uint64_t(iz) * kHashZ)));
+  };
+  std::unordered_multimap<std::uint64_t, std::size_t> grid;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    bool close = false;
+    for (int dz = -1; dz <= 1 && !close; ++dz)
+      for (int dy = -1; dy <= 1 && !close; ++dy)
+        for (int dx = -1; dx <= 1 && !close; ++dx) {
+          auto range = grid.equal_range(key(x[i], dx, dy, dz));
+          for (auto it = range.first; it != range.second && !close; ++it)
+            close = (group.empty() || group[it->second] == group[i]) && norm2(x[it->second] - x[i]) < radius[i] * radius[i];
+        }
+    if (close) continue;
+    grid.emplace(key(x[i], 0, 0, 0), i);
+    kept.push_back(i);
+  }
+  return kept;
+}
+
+void set_quad_types(EngineParams& p) {
+  p.types = 2;
+  for (int a = 0; a < kMaxTypes; ++a)
+    for (int b = 0; b < kMaxTypes; ++b) p.type_scale[a][b] = a == b ? std::sqrt(2.0) : 1.0;
+}
+
+double particle_pair_energy(ParticleEnergy e, double r, double& dE_dr) {
+  if (r >= 1.0) {
+    dE_dr = 0;
+    return 0;
+  }
+  if (e == ParticleEnergy::radial) {
+    dE_dr = 1.0 - 1.0 / (r * r);
+    return 1.0 / r - 2.0 + r;
+  }
+  const double a = 0.5 * kPi * r;
+  const double sn = std::sin(a), cs = std::cos(a);
+  dE_dr = 0.5 * kPi * (1.0 - 1.0 / (sn * sn));
+  return cs / sn + a - 0.5 * kPi;
+}
+
+double particle_ideal_energy(ParticleEnergy e) {
+  double d = 0;
+  return 6.0 * particle_pair_energy(e, engine_beta(), d);
+}
+
+// --- bins ----------------------------------------------------------------------
+
+void SampleBins::build(const std::vector<Vec3>& x, double w, const std::vector<char>& active) {
+  const std::size_t n = x.size();
+  Box bb;
+  for (const Vec3& p : x) bb.extend(p);
+  // Keep the grid's index space reasonable (wider bins are always correct).
+  const Vec3 ext = n ? bb.size() : Vec3{};
+  const double longest = std::max({ext.x, ext.y, ext.z, 0.0});
+  w = std::max({w, longest / double(1 << 20), 1e-300});
+  w_ = w;
+  lo_ = (n ? bb.lo : Vec3{}) - Vec3{w, w, w};
+  nx_ = std::uint64_t(std::floor(ext.x / w)) + 3;
+  ny_ = std::uint64_t(std::floor(ext.y / w)) + 3;
+  nz_ = std::uint64_t(std::floor(ext.z / w)) + 3;
+
+  keys_.resize(n);
+  keys_tmp_.resize(n);
+  order_.resize(n);
+  order_tmp_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 t = (x[i] - lo_) / w;
+    const std::uint64_t ix = std::min<std::uint64_t>(std::uint64_t(std::max(0.0, t.x)), nx_ - 2);
+    const std::uint64_t iy = std::min<std::uint64_t>(std::uint64_t(std::max(0.0, t.y)), ny_ - 2);
+    const std::uint64_t iz = std::min<std::uint64_t>(std::uint64_t(std::max(0.0, t.z)), nz_ - 2);
+    keys_[i] = ix + nx_ * (iy + ny_ * iz);
+    order_[i] = std::uint32_t(i);
+  }
+  // LSD radix sort of (key, index): counting sort per 11-bit digit; stable,
+  // so points keep their previous relative order within a bin.
+  const std::uint64_t total = nx_ * ny_ * nz_;
+  int bits = 1;
+  while (bits < 64 && (std::uint64_t(1) << bits) < total) ++bits;
+  constexpr int kDigit = 11;
+  radix_count_.resize(std::size_t(1) << kDigit);
+  for (int shift = 0; shift < bits; shift += kDigit) {
+    std::fill(radix_count_.begin(), radix_count_.end(), 0u);
+    const std::uint64_t mask = (std::uint64_t(1) << kDigit) - 1;
+    for (std::size_t i = 0; i < n; ++i) ++radix_count_[(keys_[i] >> shift) & mask];
+    std::uint32_t sum = 0;
+    for (auto& c : radix_count_) {
+      const std::uint32_t t = c;
+      c = sum;
+      sum += t;
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::uint32_t slot = radix_count_[(keys_[i] >> shift) & mask]++;
+      keys_tmp_[slot] = keys_[i];
+      order_tmp_[slot] = order_[i];
+    }
+    keys_.swap(keys_tmp_);
+    order_.swap(order_tmp_);
+  }
+
+  // Cells: runs of equal keys.
+  cell_key_.clear();
+  cell_start_.clear();
+  for (std::size_t i = 0; i < n; ++i)
+    if (i == 0 || keys_[i] != keys_[i - 1]) {
+      cell_key_.push_back(keys_[i]);
+      cell_start_.push_back(std::uint32_t(i));
+    }
+  cell_start_.push_back(std::uint32_t(n));
+  const std::size_t nc = cell_key_.size();
+
+  // Open-addressing hash key -> cell index + 1.
+  std::size_t hsize = 16;
+  while (hsize < 2 * nc) hsize *= 2;
+  hash_.assign(hsize, 0u);
+  const std::size_t hmask = hsize - 1;
+  for (std::size_t c = 0; c < nc; ++c) {
+    std::size_t h = mix64(cell_key_[c]) & hmask;
+    while (hash_[h]) h = (h + 1) & hmask;
+    hash_[h] = std::uint32_t(c + 1);
+  }
+  cell_nbr_.resize(nc * 27);
+  colour_start_.assign(kColours + 1, 0u);
+  std::vector<std::int8_t> colour(nc, -1);
+  for (std::size_t c = 0; c < nc; ++c) {
+    const std::uint64_t k = cell_key_[c];
+    const std::uint64_t ix = k % nx_, iy = (k / nx_) % ny_, iz = k / (nx_ * ny_);
+    int m = 0;
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx)
+          cell_nbr_[c * 27 + std::size_t(m++)] = find((ix + dx) + nx_ * ((iy + dy) + ny_ * (iz + dz)));
+    bool any = active.empty();
+    for (std::uint32_t i = cell_start_[c]; i < cell_start_[c + 1] && !any; ++i) any = active[order_[i]] != 0;
+    if (!any) continue;
+    colour[c] = std::int8_t((ix & 1) + 2 * (iy & 1) + 4 * (iz & 1));
+    ++colour_start_[std::size_t(colour[c]) + 1];
+  }
+  for (int c = 0; c < kColours; ++c) colour_start_[std::size_t(c) + 1] += colour_start_[std::size_t(c)];
+  colour_cells_.resize(colour_start_[kColours]);
+  std::uint32_t fill[kColours];
+  for (int c = 0; c < kColours; ++c) fill[c] = colour_start_[std::size_t(c)];
+  for (std::size_t c = 0; c < nc; ++c)
+    if (colour[c] >= 0) colour_cells_[fill[colour[c]]++] = std::uint32_t(c);
+}
+
+std::int32_t SampleBins::find(std::uint64_t key) const {
+  const std::size_t hmask = hash_.size() - 1;
+  std::size_t h = mix64(key) & hmask;
+  while (hash_[h]) {
+    const std::uint32_t c = hash_[h] - 1;
+    if (cell_key_[c] == key) return std::int32_t(c);
+    h = (h + 1) & hmask;
+  }
+  return -1;
+}
+
+void SampleBins::axis_masks(std::size_t c, const Vec3& x, double slack, int m[3]) const {
+  const std::uint64_t key = cell_key_[c];
+  const std::uint64_t idx[3] = {key % nx_, (key / nx_) % ny_, key / (nx_ * ny_)};
+  for (int a = 0; a < 3; ++a) {
+    const double c0 = lo_[a] + double(idx[a]) * w_, c1 = c0 + w_;
+    m[a] = (x[a] - slack < c0 ? 1 : 0) | 2 | (x[a] + slack >= c1 ? 4 : 0);
+  }
+}
+
+bool SampleBins::block_of(const Vec3& x, std::int32_t out[27]) const {
+  // The grid spans the points' box grown by one bin, so a point outside it
+  // has no point within one bin width.
+  if (hash_.empty()) return false;
+  const Vec3 t = (x - lo_) / w_;
+  if (!(t.x >= 1 && t.y >= 1 && t.z >= 1)) return false;
+  const std::uint64_t ix = std::uint64_t(t.x), iy = std::uint64_t(t.y), iz = std::uint64_t(t.z);
+  if (ix + 1 >= nx_ || iy + 1 >= ny_ || iz + 1 >= nz_) return false;
+  int m = 0;
+  for (int dz = -1; dz <= 1; ++dz)
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) out[m++] = find((ix + dx) + nx_ * ((iy + dy) + ny_ * (iz + dz)));
+  return true;
+}
+
+}  // namespace pm
