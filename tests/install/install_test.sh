@@ -16,7 +16,7 @@ done
 "$cmake" -S "$consumer" -B "$tmp/build" -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH="$prefix" \
   -DCMAKE_CXX_COMPILER="$cxx" >"$tmp/configure.log" 2>&1 || { cat "$tmp/configure.log"; exit 1; }
 "$cmake" --build "$tmp/build" >"$tmp/build.log" 2>&1 || { cat "$tmp/build.log"; exit 1; }
-"$tmp/build/consumer"
+"$tmp/build/consumer" "$tmp"
 # The Python package, when it was built, installs beside them.
 if [ -d "$build/python/particlemesh" ]; then
   site=$(/usr/bin/python3 -c 'import sys; print("lib/python%d.%d/dist-packages" % sys.version_info[:2])')

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import particlemesh as pm
-from conftest import edge_counts, read_ply, sphere_distance, triangle_areas, two_material_cube
+from conftest import edge_counts, interrupt_during, read_ply, sphere_distance, triangle_areas, two_material_cube
 
 H, R, N = 0.5, 4.0, 25
 ORIGIN = (-6.0, -6.0, -6.0)
@@ -44,6 +44,15 @@ def test_grey_sphere_surface():
     vol = np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6
     assert 4 / 3 * math.pi * r ** 3 * q ** 3 < vol < 4 / 3 * math.pi * r ** 3 * (1 + 1e-4)
     assert np.all(m.pairs == [1, 0])
+    assert m.tetrahedra is None  # only when asked
+    # to_meshio(frame="ras"), as the tools' --frame ras: x and y negated, same triangles.
+    meshio = pytest.importorskip("meshio")
+    ras = m.to_meshio(frame="ras")
+    np.testing.assert_array_equal(ras.points, m.points * [-1, -1, 1])
+    np.testing.assert_array_equal(ras.point_data["normals"], m.normals * [-1, -1, 1])
+    assert np.array_equal(ras.cells[0].data, m.triangles)
+    with pytest.raises(ValueError, match='frame: "xyz" is unknown'):
+        m.to_meshio(frame="xyz")
 
 
 def test_mask_sphere_surface_and_tets():
@@ -144,7 +153,7 @@ def _nifti(path, array, spacing, origin):
 def test_mesh_surface_is_makefile_ch5(tmp_path):
     d = sphere_distance(n=N, h=H, radius=R, origin=ORIGIN)
     _nifti(tmp_path / "ball.nii", (d < 0).astype(np.uint8), H, ORIGIN)
-    _make("ch5", INPUT=tmp_path / "ball.nii", OUT=tmp_path / "out")
+    _make("surface", INPUT=tmp_path / "ball.nii", OUT=tmp_path / "out")
     points, triangles, _ = read_ply(tmp_path / "out" / "surface.ply")
     m = pm.mesh_surface(pm.read_volume(tmp_path / "ball.nii"), progress=False)
     # Same triangles; vertices equal up to the PLY's float32 rounding.
@@ -154,9 +163,19 @@ def test_mesh_surface_is_makefile_ch5(tmp_path):
 
 def test_mesh_materials_is_makefile_ch6(tmp_path):
     _nifti(tmp_path / "cube.nii", two_material_cube().astype(np.int16), 1.0, (0.0, 0.0, 0.0))
-    _make("ch6", INPUT=tmp_path / "cube.nii", OUT=tmp_path / "out")
+    _make("materials", INPUT=tmp_path / "cube.nii", OUT=tmp_path / "out")
     points, triangles, props = read_ply(tmp_path / "out" / "interfaces.ply")
     m = pm.mesh_materials(pm.read_volume(tmp_path / "cube.nii"), progress=False)
     assert np.array_equal(triangles, m.triangles)
     assert np.array_equal(np.stack([props["label_a"], props["label_b"]], axis=1), m.pairs)
     np.testing.assert_allclose(points, m.points, rtol=0, atol=1e-6 * np.abs(m.points).max())
+
+
+def test_ctrl_c_stops_a_pipeline():
+    # Ctrl-C in the middle of mesh_materials (GIL released, no callback): the
+    # stage running checks Python's signals and the call ends with
+    # KeyboardInterrupt; a run afterwards works.
+    lab = two_material_cube()
+    interrupt_during(lambda: pm.mesh_materials(lab, voxel_spacing=0.5, progress=False))
+    m = pm.mesh_materials(lab, voxel_spacing=0.5, progress=False)
+    assert sorted(m.label_pairs) == [(0, 1), (0, 2), (1, 2)]

@@ -382,12 +382,16 @@ py::dict sample(const py::array& array, const py::object& origin, const py::obje
                 const py::object& sizing_spacing, const py::object& sizing_directions, std::optional<py::array> init,
                 std::size_t init_count, std::optional<bool> lattice_init, std::size_t count, const std::string& kernel,
                 const std::string& energy, double tolerance, double population_tolerance, bool population,
-                int max_iters, std::optional<bool> coarse_to_fine, double coarse_start, std::uint64_t seed,
-                int threads, py::object progress) {
+                int max_iters, std::optional<bool> coarse_to_fine, double coarse_start, double thin_seeds,
+                double settle, std::uint64_t seed, int threads, py::object progress) {
   // The particles tool's checks, named by keyword.
   if (!sizing && !spacing) throw py::value_error("spacing: required (world units) unless sizing is given");
   if (sizing && spacing) throw py::value_error("spacing: give spacing or sizing, not both");
   if (sizing && density != 0) throw py::value_error("density: does not apply with sizing");
+  if (!(thin_seeds >= 0 && thin_seeds <= 1.99))
+    throw py::value_error("thin_seeds: " + num(thin_seeds) + "; expected 0 to 1.99 (a fraction of the spacing)");
+  if (!(settle >= 0 && settle <= 0.99))
+    throw py::value_error("settle: " + num(settle) + "; expected 0 to 0.99 (a fraction of the spacing)");
   if (energy != "cotangent" && energy != "radial")
     throw py::value_error("energy: \"" + energy + "\" is unknown; expected cotangent or radial");
   const pm::VolumeFieldParams kp = kernel_params(kernel);
@@ -424,6 +428,8 @@ py::dict sample(const py::array& array, const py::object& origin, const py::obje
   p.init_lattice = lattice_init.value_or(true);  // the tool's default for volumes
   p.coarse_to_fine = coarse_to_fine.value_or(true);
   p.coarse_start = coarse_start;
+  p.seed_thinning = thin_seeds;
+  p.settled_move = settle;
   p.seed = seed;
   p.progress = true;
   Run run(std::move(progress), threads);
@@ -448,11 +454,14 @@ py::dict sample(const py::array& array, const py::object& origin, const py::obje
 py::dict mesh_surface(const py::array& array, const py::object& origin, const py::object& voxel_spacing,
                       const py::object& directions, std::optional<double> iso, std::vector<std::int64_t> labels,
                       const std::string& stencil, std::size_t min_component, std::optional<double> radius,
-                      int upsample, double eps, double delta, std::optional<double> spacing,
+                      std::optional<int> upsample, double eps, double delta, std::optional<double> spacing,
                       std::optional<double> hmin, bool morph, bool tighten, int decimate, double tolerance,
                       int improve, bool tetrahedra, std::uint64_t seed, int threads, py::object progress) {
   if (spacing && !(*spacing > 0)) throw py::value_error("spacing: " + num(*spacing) + "; expected > 0 (world units)");
-  if (radius && !(*radius > 0)) throw py::value_error("radius: " + num(*radius) + "; expected > 0 (world units)");
+  if (radius && !(*radius > 0))
+    throw py::value_error("radius: " + num(*radius) + "; expected > 0 (world units) or None (auto)");
+  if (upsample && (*upsample < 1 || *upsample > 8))
+    throw py::value_error("upsample: " + std::to_string(*upsample) + "; expected 1 to 8 or None (auto)");
   if (hmin && !(*hmin > 0)) throw py::value_error("hmin: " + num(*hmin) + "; expected > 0 (world units)");
   const pm::Volume v = to_volume(array, "array", Values::any, to_geometry(origin, voxel_spacing, directions));
   pm::SurfacePipelineParams p;
@@ -461,7 +470,7 @@ py::dict mesh_surface(const py::array& array, const py::object& origin, const py
   p.stencil = stencil;
   p.min_component = min_component;
   p.radius = radius.value_or(0);
-  p.upsample = upsample;
+  p.upsample = upsample.value_or(0);
   p.eps = eps;
   p.delta = delta;
   p.spacing = spacing.value_or(0);
@@ -486,11 +495,15 @@ py::dict mesh_surface(const py::array& array, const py::object& origin, const py
 py::dict mesh_materials(const py::array& labels, const py::object& origin, const py::object& voxel_spacing,
                         const py::object& directions, const std::string& merge, std::size_t min_voxels,
                         std::size_t pad, const std::string& pad_value, const std::string& morph_ops, int downsample,
-                        double radius, int upsample, double eps, double delta, std::optional<double> hmin,
+                        std::optional<double> radius, std::optional<int> upsample, double eps, double delta,
+                        std::optional<double> hmin,
                         std::optional<double> spacing, int decimate, int improve, bool tetrahedra, std::uint64_t seed,
                         int threads, py::object progress) {
   if (spacing && !(*spacing > 0)) throw py::value_error("spacing: " + num(*spacing) + "; expected > 0 (world units)");
-  if (!(radius > 0)) throw py::value_error("radius: " + num(radius) + "; expected > 0 (world units)");
+  if (radius && !(*radius > 0))
+    throw py::value_error("radius: " + num(*radius) + "; expected > 0 (world units) or None (auto)");
+  if (upsample && (*upsample < 1 || *upsample > 8))
+    throw py::value_error("upsample: " + std::to_string(*upsample) + "; expected 1 to 8 or None (auto)");
   if (hmin && !(*hmin >= 0)) throw py::value_error("hmin: " + num(*hmin) + "; expected >= 0 (world units)");
   const pm::Volume v = to_volume(labels, "labels", Values::labels, to_geometry(origin, voxel_spacing, directions));
   pm::MaterialsPipelineParams p;
@@ -500,8 +513,8 @@ py::dict mesh_materials(const py::array& labels, const py::object& origin, const
   p.pad_value = pad_value;
   p.morph_ops = morph_ops;
   p.downsample = downsample;
-  p.radius = radius;
-  p.upsample = upsample;
+  p.radius = radius.value_or(0);
+  p.upsample = upsample.value_or(0);
   p.eps = eps;
   p.delta = delta;
   p.hmin = hmin.value_or(-1);
@@ -559,7 +572,8 @@ PYBIND11_MODULE(_core, m) {
         py::arg("sizing_origin"), py::arg("sizing_spacing"), py::arg("sizing_directions"), py::arg("init"),
         py::arg("init_count"), py::arg("lattice_init"), py::arg("count"), py::arg("kernel"), py::arg("energy"),
         py::arg("tolerance"), py::arg("population_tolerance"), py::arg("population"), py::arg("max_iters"),
-        py::arg("coarse_to_fine"), py::arg("coarse_start"), py::arg("seed"), py::arg("threads"),
+        py::arg("coarse_to_fine"), py::arg("coarse_start"), py::arg("thin_seeds"), py::arg("settle"),
+        py::arg("seed"), py::arg("threads"),
         py::arg("progress"));
   m.def("mesh_surface", &mesh_surface, py::arg("array"), py::arg("origin"), py::arg("voxel_spacing"),
         py::arg("directions"), py::arg("iso"), py::arg("labels"), py::arg("stencil"), py::arg("min_component"),

@@ -159,8 +159,9 @@ Volume grey_distance(const Volume& v, double iso, const std::string& what) {
   return d;
 }
 
-// medialaxis (side both, defaults) as the sizingfield tool reads it back.
-std::vector<Vec3> medial_points(const Volume& sdf, const std::string& what) {
+// medialaxis (side both, defaults) as the sizingfield tool reads it back;
+// none is an error unless `may_be_empty`.
+std::vector<Vec3> medial_points(const Volume& sdf, const std::string& what, bool may_be_empty = false) {
   MedialAxisResult r;
   try {
     r = medial_axis(sdf, {});
@@ -168,9 +169,23 @@ std::vector<Vec3> medial_points(const Volume& sdf, const std::string& what) {
     throw InputError(what + ": " + e.what());
   }
   std::vector<Vec3> pts = as_stored(r.points.vertices);
-  if (pts.empty())
+  if (pts.empty() && !may_be_empty)
     throw InputError(what + ": no medial-axis points; expected a signed distance volume with a surface");
   return pts;
+}
+
+// morph's warnings for the materials it kept against a stage (or lost).
+void kept_label_warnings(const LabelMorphResult& r, std::vector<std::string>& out) {
+  for (const KeptLabel& k : r.kept) {
+    const std::string why = k.stage == "morphology"   ? "the morphology would erase it"
+                            : k.stage == "downsample" ? "downsampling would erase it"
+                                                      : "every component of it is below min_component";
+    out.push_back("morph: label " + std::to_string(k.label) + ": " + why + "; kept " + std::to_string(k.voxels) +
+                  " voxel(s) of it");
+  }
+  for (std::int64_t l : r.lost)
+    out.push_back("morph: label " + std::to_string(l) +
+                  ": erased by downsampling; the downsampled grid has too few voxels to keep every label");
 }
 
 }  // namespace
@@ -355,15 +370,19 @@ SurfacePipelineResult mesh_surface_pipeline(const Volume& in, const SurfacePipel
       mp.min_component = p.min_component;
       try {
         require_labels(m, what);
-        m = morph_labels(m, mp).labels;
+        LabelMorphResult r = morph_labels(m, mp);
+        kept_label_warnings(r, res.warnings);
+        m = std::move(r.labels);
       } catch (const InputError& e) {
         throw InputError(what + ": " + e.what());
       }
     });
     stages.run("tighten", [&] {
+      // tighten --radius R --upsample K, auto from morph.nrrd's header and size.
+      const TightenDefaults td = tighten_defaults(m, p.radius, p.upsample);
       TightenParams tp;
-      tp.radius = p.radius > 0 ? p.radius : hs;
-      tp.upsample = p.upsample;
+      tp.radius = td.radius;
+      tp.upsample = td.upsample;
       TightenResult r;
       try {
         r = tighten(m, tp);
@@ -505,7 +524,9 @@ MaterialsPipelineResult mesh_materials_pipeline(const Volume& in, const Material
         if (p.morph_ops != "none") mp.steps = parse_morph_steps(p.morph_ops);
         mp.downsample = p.downsample;
         mp.vote = true;
-        lv = morph_labels(lv, mp).labels;
+        LabelMorphResult r = morph_labels(lv, mp);
+        kept_label_warnings(r, res.warnings);
+        lv = std::move(r.labels);
       } catch (const InputError& e) {
         throw InputError(what + ": " + e.what());
       }
@@ -515,10 +536,14 @@ MaterialsPipelineResult mesh_materials_pipeline(const Volume& in, const Material
   // tighten --per-label: one signed distance per label, one grid.
   std::vector<int> labels;
   std::vector<Volume> sdfs;
+  double radius = 0;  // the radius tighten used (HMIN's default)
   stages.run("tighten", [&] {
+    // tighten --per-label --radius R --upsample K, auto from morph.nrrd's header and size.
+    const TightenDefaults td = tighten_defaults(lv, p.radius, p.upsample);
+    radius = td.radius;
     TightenParams tp;
-    tp.radius = p.radius;
-    tp.upsample = p.upsample;
+    tp.radius = td.radius;
+    tp.upsample = td.upsample;
     try {
       tighten_labels(lv, tp, [&](int label, TightenResult&& r) {
         if (!r.converged)
@@ -547,15 +572,26 @@ MaterialsPipelineResult mesh_materials_pipeline(const Volume& in, const Material
     std::vector<std::vector<Vec3>> mas(sdfs.size());
     stages.run("medialaxis", [&] {
       for (std::size_t i = 0; i < sdfs.size(); ++i)
-        mas[i] = medial_points(sdfs[i], what + " label " + std::to_string(labels[i]));
+        mas[i] = medial_points(sdfs[i], what + " label " + std::to_string(labels[i]), true);
     });
     stages.run("sizingfield", [&] {
       SizingFieldParams sp;
       sp.eps = p.eps;
-      sp.hmin = p.hmin >= 0 ? p.hmin : p.radius;
+      sp.hmin = p.hmin >= 0 ? p.hmin : radius;
+      // A material without medial-axis points (the corner voxel of a tiny
+      // volume) adds no feature size; when none has any, h = HMIN everywhere.
       std::vector<SizingSurface> surfaces;
-      for (std::size_t i = 0; i < sdfs.size(); ++i) surfaces.push_back({sdfs[i], mas[i]});
-      const Volume h0 = sizing_field(surfaces, sp).h;
+      for (std::size_t i = 0; i < sdfs.size(); ++i)
+        if (!mas[i].empty()) surfaces.push_back({sdfs[i], mas[i]});
+      Volume h0;
+      if (surfaces.empty()) {
+        res.warnings.push_back("no material has a medial axis (a volume of a few voxels): h = HMIN = " +
+                               format_number(sp.hmin) + " everywhere");
+        h0 = Volume(VoxelType::f32, sdfs[0].dims(), sdfs[0].geometry());
+        for (std::size_t i = 0; i < h0.count(); ++i) h0.set(i, sp.hmin);
+      } else {
+        h0 = sizing_field(surfaces, sp).h;
+      }
       GradLimitParams gp;
       gp.delta = p.delta;
       sizing = std::make_unique<SizingField>(gradient_limit(h0, gp).h, "h");

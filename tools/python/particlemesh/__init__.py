@@ -321,7 +321,8 @@ def sample(volume, *, iso: float = 0.0, spacing: Optional[float] = None, density
            lattice_init: Optional[bool] = None, count: int = 0, kernel: str = "bspline",
            energy: str = "cotangent", tolerance: float = 0.0015, population_tolerance: float = 0.001,
            population: bool = True, max_iters: int = 2000, coarse_to_fine: Optional[bool] = None,
-           coarse_start: float = 0.0, seed: int = 1, threads: int = 0, origin=None, voxel_spacing=None,
+           coarse_start: float = 0.0, thin_seeds: float = 0.0, settle: float = 0.0, seed: int = 1,
+           threads: int = 0, origin=None, voxel_spacing=None,
            directions=None, progress=None) -> Samples:
     """Particles on the isosurface F = iso of a volume (the `particles` tool, Chapter 3).
 
@@ -347,7 +348,7 @@ def sample(volume, *, iso: float = 0.0, spacing: Optional[float] = None, density
     r = _run(_core.sample, progress, arr, o, s, d, float(iso), spacing, float(density), float(alpha_cap), sizing,
              so, ss, sd, init, int(init_count), lattice_init, int(count), kernel, energy, float(tolerance),
              float(population_tolerance), bool(population), int(max_iters), coarse_to_fine, float(coarse_start),
-             int(seed), int(threads))
+             float(thin_seeds), float(settle), int(seed), int(threads))
     out = _samples(r)
     ws = list(r["warnings"])
     if not out.converged:
@@ -358,7 +359,7 @@ def sample(volume, *, iso: float = 0.0, spacing: Optional[float] = None, density
 
 def mesh_surface(volume, *, iso: Optional[float] = None, labels: Optional[Sequence[int]] = None,
                  stencil: str = "ball", min_component: int = 0, radius: Optional[float] = None,
-                 upsample: int = 1, eps: float = 0.5, delta: float = 0.05, spacing: Optional[float] = None,
+                 upsample: Optional[int] = None, eps: float = 0.5, delta: float = 0.05, spacing: Optional[float] = None,
                  hmin: Optional[float] = None, morph: bool = False, tighten: bool = False, decimate: int = 4,
                  tolerance: float = 1e-4, improve: int = 3, tetrahedra: bool = False, seed: int = 1,
                  threads: int = 0, origin=None,
@@ -367,7 +368,8 @@ def mesh_surface(volume, *, iso: Optional[float] = None, labels: Optional[Sequen
 
     A mask (an integer array with exactly two values, or `labels` of a label
     map) goes mask -> morphology (close, open with `stencil`) -> tighten
-    (`radius`, default the smallest voxel spacing) -> signed distance; a
+    (`radius`, world units, and `upsample`; None = auto as `tighten`: the
+    largest voxel spacing, upsampled when an axis has < 8 voxels) -> signed distance; a
     grey-level volume needs `iso` and is meshed directly (morph/tighten=True:
     through the mask stages). Then medial axis -> sizing field (eps, hmin
     default half the smallest spacing) -> gradient limit (delta) -> marching
@@ -382,7 +384,7 @@ def mesh_surface(volume, *, iso: Optional[float] = None, labels: Optional[Sequen
         arr = arr.astype(np.uint8)
     labels = [] if labels is None else [int(x) for x in labels]
     r = _run(_core.mesh_surface, progress, arr, o, s, d, None if iso is None else float(iso), labels, stencil,
-             int(min_component), radius, int(upsample), float(eps), float(delta), spacing, hmin, bool(morph),
+             int(min_component), radius, upsample, float(eps), float(delta), spacing, hmin, bool(morph),
              bool(tighten), int(decimate), float(tolerance), int(improve), bool(tetrahedra), int(seed), int(threads))
     nf = len(r["triangles"])
     pairs = np.tile(np.array([[1, 0]], dtype=np.int64), (nf, 1))
@@ -395,7 +397,8 @@ def mesh_surface(volume, *, iso: Optional[float] = None, labels: Optional[Sequen
 
 def mesh_materials(labels, *, merge: Optional[str] = None, min_voxels: int = 0, pad: int = 0,
                    pad_value: Union[str, int] = "new", morph_ops: str = "close:ball,open:ball", downsample: int = 1,
-                   radius: float = 1.0, upsample: int = 1, eps: float = 0.5, delta: float = 0.4,
+                   radius: Optional[float] = None, upsample: Optional[int] = None, eps: float = 0.5,
+                   delta: float = 0.4,
                    hmin: Optional[float] = None, spacing: Optional[float] = None, decimate: int = 2,
                    improve: int = 3, tetrahedra: bool = False, seed: int = 1, threads: int = 0, origin=None,
                    voxel_spacing=None,
@@ -405,8 +408,9 @@ def mesh_materials(labels, *, merge: Optional[str] = None, min_voxels: int = 0, 
     labels: a Volume or 3-D integer array; every label is a material (0
     included). merge ("1,2:1 3-5:2"), min_voxels, pad/pad_value -> morphology
     per label (morph_ops, or "none"; downsample) with voting fill -> tighten
-    per label (radius, world units; upsample) -> medial axes -> sizing field
-    (eps, hmin default radius) -> gradient limit (delta) -> junction seeds
+    per label (radius, world units, and upsample; None = auto, from the label
+    map after morphology: its largest voxel spacing) -> medial axes -> sizing
+    field (eps, hmin default the radius used) -> gradient limit (delta) -> junction seeds
     (decimate) -> multi-material particles (or a uniform `spacing`) ->
     labelled Delaunay tetrahedra -> `improve` rounds on the interfaces.
     Keywords are Makefile.ch6's variables in lower case, same defaults
@@ -417,7 +421,7 @@ def mesh_materials(labels, *, merge: Optional[str] = None, min_voxels: int = 0, 
     if arr.dtype == np.bool_:
         arr = arr.astype(np.uint8)
     r = _run(_core.mesh_materials, progress, arr, o, s, d, merge or "", int(min_voxels), int(pad), str(pad_value),
-             morph_ops, int(downsample), float(radius), int(upsample), float(eps), float(delta), hmin, spacing,
+             morph_ops, int(downsample), radius, upsample, float(eps), float(delta), hmin, spacing,
              int(decimate), int(improve), bool(tetrahedra), int(seed), int(threads))
     cd = r["cell_data"]
     pairs = np.stack([cd["label_a"], cd["label_b"]], axis=1) if len(r["triangles"]) else np.zeros((0, 2), np.int64)

@@ -105,8 +105,8 @@ struct SurfacePipelineParams {
   std::vector<std::int64_t> labels;  ///< LABELS: mesh the mask of these labels
   std::string stencil = "ball";      ///< STENCIL of the close/open morphology
   std::size_t min_component = 0;     ///< MIN_COMPONENT, voxels (0 = keep all)
-  double radius = 0;                 ///< R: tightening radius, world units (0 = smallest voxel spacing)
-  int upsample = 1;                  ///< UPSAMPLE of the tightening
+  double radius = 0;                 ///< R: tightening radius, world units (0 = auto, pm::tighten_defaults)
+  int upsample = 0;                  ///< UPSAMPLE of the tightening (0 = auto, pm::tighten_defaults)
   double eps = 0.5;                  ///< EPS of the sizing field
   double delta = 0.05;               ///< DELTA: gradient limit of the sizing field
   double spacing = 0;                ///< SPACING: uniform particle spacing, world units (0 = the sizing field)
@@ -148,11 +148,12 @@ struct MaterialsPipelineParams {
   std::string pad_value = "new";     ///< PAD_VALUE: "new" or a label
   std::string morph_ops = "close:ball,open:ball";  ///< MORPH_OPS ("none" = no morphology)
   int downsample = 1;                ///< DOWNSAMPLE
-  double radius = 1;                 ///< R: tightening radius, world units
-  int upsample = 1;                  ///< UPSAMPLE
+  double radius = 0;                 ///< R: tightening radius, world units (0 = auto, pm::tighten_defaults
+                                     ///< of the label map after morphology and downsampling)
+  int upsample = 0;                  ///< UPSAMPLE (0 = auto)
   double eps = 0.5;                  ///< EPS
   double delta = 0.4;                ///< DELTA
-  double hmin = -1;                  ///< HMIN, world units (< 0 = R)
+  double hmin = -1;                  ///< HMIN, world units (< 0 = the radius tighten used)
   double spacing = 0;                ///< SPACING: uniform spacing (0 = the sizing field)
   int decimate = 2;                  ///< DECIMATE of the junction seeds
   int improve = 3;                   ///< IMPROVE
