@@ -60,3 +60,26 @@ def test_bad_parameters_are_value_errors():
         bad = GOOD.copy()
         bad[3, 3, 3] = np.nan
         pm.sample(bad, iso=0.0, spacing=1.0, progress=False)
+
+
+def test_labels_argument_is_named():
+    lab = two_material_cube()
+    with pytest.raises(ValueError, match=r"labels: expected a 3-D array .* 4-D"):
+        pm.mesh_materials(lab[..., None], progress=False)
+    with pytest.raises(ValueError, match="labels: unsupported dtype complex128"):
+        pm.mesh_materials(lab.astype(np.complex128), progress=False)
+    with pytest.raises(ValueError, match="labels: expected a numpy array or a particlemesh.Volume, got list"):
+        pm.mesh_materials(lab.tolist(), progress=False)
+
+
+def test_bad_keywords_are_named():
+    with pytest.raises(ValueError, match=r"radius: -1; expected > 0"):
+        pm.mesh_surface((GOOD < 0).astype(np.uint8), radius=-1, progress=False)
+    with pytest.raises(ValueError, match="upsample: 9; expected 1 to 8"):
+        pm.mesh_materials(two_material_cube(), upsample=9, progress=False)
+    with pytest.raises(ValueError, match="threads: -2"):
+        pm.sample(GOOD, iso=0.0, spacing=1.0, threads=-2, progress=False)
+    with pytest.raises(ValueError, match="progress: expected a callable"):
+        pm.sample(GOOD, iso=0.0, spacing=1.0, progress="yes")
+    with pytest.raises(ValueError, match="init: expected an N x 3 array"):
+        pm.sample(GOOD, iso=0.0, spacing=1.0, init=np.zeros((4, 2)), progress=False)

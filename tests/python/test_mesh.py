@@ -179,3 +179,14 @@ def test_ctrl_c_stops_a_pipeline():
     interrupt_during(lambda: pm.mesh_materials(lab, voxel_spacing=0.5, progress=False))
     m = pm.mesh_materials(lab, voxel_spacing=0.5, progress=False)
     assert sorted(m.label_pairs) == [(0, 1), (0, 2), (1, 2)]
+
+
+def test_labels_of_a_label_map():
+    # labels=[2]: the mask of material 2 of the cube, voxels i 10..15, j and k
+    # 4..15 (spacing 0.5): its surface lies within a voxel of that box.
+    lab = two_material_cube()
+    m = pm.mesh_surface(lab, labels=[2], voxel_spacing=0.5, progress=False)
+    assert m.kind == "mask" and np.all(edge_counts(m.triangles) == 2)
+    lo, hi = m.points.min(axis=0), m.points.max(axis=0)
+    np.testing.assert_allclose(lo, np.array([10, 4, 4]) * 0.5, atol=0.5)
+    np.testing.assert_allclose(hi, np.array([15, 15, 15]) * 0.5, atol=0.5)

@@ -135,3 +135,18 @@ def test_tqdm_bars(sphere, capfd, monkeypatch):
     pm.sample(sphere, iso=0.0, spacing=2.0, voxel_spacing=H, origin=ORIGIN)  # progress=None: tqdm when present
     err = capfd.readouterr().err
     assert "particles, dE" in err  # the engine's detail in the bar's postfix
+
+
+def test_sizing_field_sets_the_spacing(sphere):
+    # A constant sizing field h = 1 (on the input's grid) is a uniform
+    # spacing of 1: every particle's local spacing is h, and the count is the
+    # hexagonal packing's, as with spacing=1.
+    h = np.ones_like(sphere, dtype=np.float32)
+    r = pm.sample(sphere, iso=0.0, sizing=h, voxel_spacing=H, origin=ORIGIN, progress=False)
+    assert np.allclose(r.spacing, 1.0, rtol=1e-6)
+    expected = 4 * math.pi * R * R / (math.sqrt(3) / 2)
+    assert abs(len(r.points) - expected) < 0.1 * expected
+    with pytest.raises(ValueError, match="spacing: give spacing or sizing, not both"):
+        pm.sample(sphere, iso=0.0, sizing=h, spacing=1.0, progress=False)
+    with pytest.raises(ValueError, match="sizing: expected a 3-D array"):
+        pm.sample(sphere, iso=0.0, sizing=h[0], progress=False)
