@@ -5,8 +5,8 @@ The same pipelines as the command-line tools, on numpy arrays:
     import particlemesh as pm
     vol = pm.read_volume("brain.nii.gz")            # array + origin, spacing, directions
     pts = pm.sample(vol, iso=0.5, spacing=2.0)      # Chapter 3: points and normals
-    surf = pm.mesh_surface(vol, iso=0.5)            # Chapter 5: make -f Makefile.pipeline ch5
-    mats = pm.mesh_materials(labels_vol)            # Chapter 6: make -f Makefile.pipeline ch6
+    surf = pm.mesh_surface(vol, iso=0.5)            # Chapter 5: make -f Makefile.pipeline surface
+    mats = pm.mesh_materials(labels_vol)            # Chapter 6: make -f Makefile.pipeline materials
     surf.to_meshio().write("brain.vtu")
 
 Arrays are indexed [i, j, k] (axis 0 is the volume's first axis, as nibabel's
@@ -364,7 +364,7 @@ def mesh_surface(volume, *, iso: Optional[float] = None, labels: Optional[Sequen
                  tolerance: float = 1e-4, improve: int = 3, tetrahedra: bool = False, seed: int = 1,
                  threads: int = 0, origin=None,
                  voxel_spacing=None, directions=None, progress=None) -> SurfaceMesh:
-    """The Chapter 5 pipeline (`make -f Makefile.pipeline ch5`) on a volume.
+    """The Chapter 5 pipeline (`make -f Makefile.pipeline surface`) on a volume.
 
     A mask (an integer array with exactly two values, or `labels` of a label
     map) goes mask -> morphology (close, open with `stencil`) -> tighten
@@ -403,7 +403,7 @@ def mesh_materials(labels, *, merge: Optional[str] = None, min_voxels: int = 0, 
                    improve: int = 3, tetrahedra: bool = False, seed: int = 1, threads: int = 0, origin=None,
                    voxel_spacing=None,
                    directions=None, progress=None) -> MaterialMesh:
-    """The Chapter 6 pipeline (`make -f Makefile.pipeline ch6`) on a label map.
+    """The Chapter 6 pipeline (`make -f Makefile.pipeline materials`) on a label map.
 
     labels: a Volume or 3-D integer array; every label is a material (0
     included). merge ("1,2:1 3-5:2"), min_voxels, pad/pad_value -> morphology

@@ -1,7 +1,7 @@
 #pragma once
 // The Chapter 5 and Chapter 6 pipelines as library calls, chaining the same
-// library functions with the same defaults as Makefile.pipeline (ch5) and
-// Makefile.ch6 (ch6) chain the tools, for front ends that hold the volume in
+// library functions with the same defaults as Makefile.pipeline (surface) and
+// Makefile.ch6 (materials) chain the tools, for front ends that hold the volume in
 // memory (the Python module). Point sets pass between stages rounded to
 // float32, as the PLY files between the tools do, so that a pipeline gives
 // the Makefile's result. Also the tetlabel tool's two meshing stages
@@ -97,7 +97,7 @@ MaterialStageResult mesh_materials_from_particles(Mesh points, const MaterialSet
 
 // --- Chapter 5: one surface ----------------------------------------------------
 
-/// Makefile.pipeline ch5's variables, same names and defaults.
+/// Makefile.pipeline surface's variables, same names and defaults.
 struct SurfacePipelineParams {
   /// ISO: isovalue of a grey-level volume (required unless the volume is a
   /// mask, i.e. has exactly two values, or `labels` is given).
