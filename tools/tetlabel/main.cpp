@@ -1,10 +1,6 @@
 // tetlabel: mesh particles by labelled Delaunay tetrahedra (TetGen): every
 // tetrahedron is inside or outside by the field at its circumcentre; the
 // faces between inside and outside form the surface.
-#include <cmath>
-#include <cstdint>
-#include <unordered_map>
-
 #include "pm/base/error.h"
 #include "pm/base/log.h"
 #include "pm/base/stats.h"
@@ -14,6 +10,7 @@
 #include "pm/cli/material_options.h"
 #include "pm/cli/run_tool.h"
 #include "pm/io/mesh.h"
+#include "pm/mesh/pipeline.h"
 #include "pm/mesh/tetlabel.h"
 #include "pm/mesh/tetlabel_materials.h"
 #include "pm/cli/frame_option.h"
@@ -21,65 +18,6 @@
 #include "pm/io/tet_mesh.h"
 
 namespace {
-
-// Copy the particles' vertex scalars (junction, label_a, ...) onto a mesh
-// made from them (vertex scalar "index" = particle index).
-void copy_point_scalars(const pm::Mesh& pts, pm::Mesh& m) {
-  const auto& idx = m.vertex_scalars.at("index");
-  for (const auto& [name, vals] : pts.vertex_scalars) {
-    if (name == "index") continue;
-    std::vector<double> v(m.vertices.size());
-    for (std::size_t i = 0; i < v.size(); ++i) v[i] = vals[std::size_t(idx[i])];
-    m.vertex_scalars[name] = std::move(v);
-  }
-}
-
-// Drop particles closer than `tol` to an earlier one (TetGen refuses
-// duplicates, e.g. two seeds converged onto one quadruple point); vertex
-// scalars follow. Returns the number dropped.
-std::size_t drop_duplicates(pm::Mesh& pts, double tol) {
-  std::unordered_map<std::uint64_t, std::vector<std::size_t>> grid;
-  auto cell = [&](const pm::Vec3& p, int dx, int dy, int dz) {
-    const auto c = [&](double v, int d) { return std::uint64_t(std::int64_t(std::floor(v / tol)) + d) & 0x1fffff; };
-    return (c(p.x, dx) << 42) | (c(p.y, dy) << 21) | c(p.z, dz);
-  };
-  std::vector<std::size_t> keep;
-  for (std::size_t i = 0; i < pts.vertices.size(); ++i) {
-    bool dup = false;
-    for (int dx = -1; dx <= 1 && !dup; ++dx)
-      for (int dy = -1; dy <= 1 && !dup; ++dy)
-        for (int dz = -1; dz <= 1 && !dup; ++dz) {
-          auto it = grid.find(cell(pts.vertices[i], dx, dy, dz));
-          if (it == grid.end()) continue;
-          for (std::size_t j : it->second)
-            if (pm::norm(pts.vertices[j] - pts.vertices[i]) <= tol) dup = true;
-        }
-    if (dup) continue;
-    grid[cell(pts.vertices[i], 0, 0, 0)].push_back(i);
-    keep.push_back(i);
-  }
-  const std::size_t dropped = pts.vertices.size() - keep.size();
-  if (dropped == 0) return 0;
-  pm::Mesh out;
-  for (std::size_t i : keep) {
-    out.vertices.push_back(pts.vertices[i]);
-    if (pts.has_normals()) out.normals.push_back(pts.normals[i]);
-    for (const auto& [name, v] : pts.vertex_scalars) out.vertex_scalars[name].push_back(v[i]);
-  }
-  pts = std::move(out);
-  return dropped;
-}
-
-// TetGen's Delaunay tetrahedralisation of the particles (a timed stage);
-// TetGen's complaints name the point file.
-pm::TetMesh delaunay_of(const std::string& points, const pm::Mesh& pts, bool enclosed = false) {
-  pm::ScopedStage s("delaunay");
-  try {
-    return enclosed ? pm::delaunay_enclosed(pts.vertices) : pm::delaunay(pts.vertices);
-  } catch (const pm::InputError& e) {
-    throw pm::InputError(pm::quote(points) + ": " + e.what());
-  }
-}
 
 // --improve's result: one info line and the "improve" stats object.
 void report_improve(const pm::SurfaceImproveStats& is, int rounds, const char* valence_key) {
@@ -122,46 +60,23 @@ void run_materials(pm::Mesh pts, const std::string& points, const pm::MaterialOp
       throw pm::UsageError("--outside \"" + outside_opt + "\" is not an integer label or auto");
     }
   }
-  {
-    pm::Box b;
-    for (const auto& v : pts.vertices) b.extend(v);
-    const std::size_t dup = drop_duplicates(pts, 1e-7 * std::max(pm::norm(b.size()), 1e-300));
-    if (dup > 0) pm::warn(std::to_string(dup) + " duplicate particle(s) dropped (within 1e-7 of the bounding box diagonal)");
-  }
-  pm::TetMesh tm = delaunay_of(points, pts);
-  pm::MaterialMeshes mm;
-  {
-    pm::ScopedStage s("label");
-    mm = pm::mesh_materials(tm, ms, mp);
-  }
-  if (mm.interfaces.faces.empty())
-    throw pm::InputError(pm::quote(points) + ": every tetrahedron has the same material (" +
-                         std::to_string(tm.labels.empty() ? mp.outside_label : tm.labels[0]) +
-                         "); expected particles sampling the interfaces between materials");
-  copy_point_scalars(pts, mm.interfaces);
-  const pm::MeshTopology it = pm::mesh_topology(mm.interfaces);
-  if (it.boundary_edges > 0)
-    pm::warn("the interface mesh has " + std::to_string(it.boundary_edges) + " boundary edges");
-  for (int l : mm.nonmanifold_materials)
-    pm::warn("the surface of material " + std::to_string(l) + " is not a closed manifold after the repair");
-  const std::size_t buried = pts.vertices.size() - it.vertices;
-  if (buried > 0)
-    pm::warn(std::to_string(buried) + " particles are not on any interface (off the interfaces, or too close)");
-  if (improve > 0) {
-    pm::ScopedStage s("improve");
-    pm::SurfaceImproveParams ip;
-    ip.rounds = improve;
-    const pm::SurfaceImproveStats is = pm::improve_interfaces(mm.interfaces, ms, ip);
-    for (auto& [l, m] : mm.surfaces) m = pm::material_from_interfaces(mm.interfaces, l);
-    report_improve(is, improve, "valence6_share_interface_vertices");
-  }
+  pm::MaterialStageParams sp;
+  sp.outside_label = mp.outside_label;
+  sp.repair = repair;
+  sp.improve = improve;
+  const pm::MaterialStageResult r = pm::mesh_materials_from_particles(std::move(pts), ms, sp, pm::quote(points));
+  for (const auto& w : r.warnings) pm::warn(w);
+  if (r.improve) report_improve(*r.improve, improve, "valence6_share_interface_vertices");
+  const pm::MaterialMeshes& mm = r.meshes;
+  const pm::TetMesh& tm = r.tets;
+  const pm::MeshTopology& it = r.interface_topology;
+  const std::size_t buried = r.buried;
   pm::write_mesh(mm.interfaces, out, {true, frame});
   pm::Json outputs = {out};
   pm::Json per = pm::Json::object();
-  for (auto& [l, m] : mm.surfaces) {
-    copy_point_scalars(pts, m);
+  for (const auto& [l, m] : mm.surfaces) {
     const pm::MeshTopology t = pm::mesh_topology(m);
-    per[std::to_string(l)] = {{"tetrahedra", mm.tets_per_label[l]}, {"vertices", t.vertices}, {"faces", t.faces},
+    per[std::to_string(l)] = {{"tetrahedra", mm.tets_per_label.count(l) ? mm.tets_per_label.at(l) : 0}, {"vertices", t.vertices}, {"faces", t.faces},
                               {"components", t.components}, {"genus", t.genus},
                               {"closed_manifold", t.closed_manifold()}};
     if (!surfaces.empty()) {
@@ -182,7 +97,7 @@ void run_materials(pm::Mesh pts, const std::string& points, const pm::MaterialOp
   st["parameters"] = {{"materials", mo.spec}, {"kernel", mo.kernel}, {"outside_label", mp.outside_label},
                       {"repair", repair}};
   st["outputs"] = outputs;
-  st["counts"] = {{"particles", pts.vertices.size()}, {"tetrahedra", mm.label_stats.tets},
+  st["counts"] = {{"particles", r.particles}, {"tetrahedra", mm.label_stats.tets},
                   {"degenerate_tetrahedra", mm.label_stats.flat}, {"relabelled_for_manifold", mm.relabelled},
                   {"vertices", it.vertices}, {"faces", it.faces}, {"particles_not_on_interfaces", buried},
                   {"boundary_edges", it.boundary_edges}, {"nonmanifold_edges", it.nonmanifold_edges},
@@ -268,59 +183,22 @@ int main(int argc, char** argv) {
     if (pts.vertices.size() < 4)
       throw pm::InputError(pm::quote(points) + ": " + std::to_string(pts.vertices.size()) +
                            " points; expected at least 4 particles");
-    pm::TetMesh tm = delaunay_of(points, pts, true);
-    pm::TetLabelStats ls;
-    {
-      pm::ScopedStage s("label");
-      const pm::ScalarField& f = *lf.field;
-      const double iso = lf.iso;
-      // Circumcentres of hull tetrahedra can lie far outside the volume, where
-      // a reconstructed field only replicates its border: outside the domain
-      // is outside the material.
-      const pm::Box dom = f.domain();
-      const bool below = inside == "auto" ? pm::material_below_iso(f, iso) : inside == "below";
-      st["parameters"] = {{"iso", iso}, {"inside", below ? "below" : "above"}};
-      ls = pm::label_tets(tm, [&](const pm::Vec3& x) {
-        if (!dom.contains(x)) return 0;
-        const double v = f.value(x);
-        return (below ? v < iso : v > iso) ? 1 : 0;
-      });
-    }
-    std::size_t relabelled = 0;
-    if (repair) {
-      pm::ScopedStage s("manifold");
-      relabelled = pm::make_manifold(tm, 1, 0);
-    }
-    pm::Mesh surf = pm::material_surface(tm, 1, 0);
-    if (surf.faces.empty())
-      throw pm::InputError(pm::quote(points) + ": no tetrahedron is inside the surface F < " +
-                           std::to_string(lf.iso) + "; expected particles sampling the isosurface");
-    if (pts.has_normals()) {
-      surf.normals.resize(surf.vertices.size());
-      const auto& idx = surf.vertex_scalars.at("index");
-      for (std::size_t i = 0; i < surf.vertices.size(); ++i) surf.normals[i] = pts.normals[std::size_t(idx[i])];
-    }
-    const pm::MeshTopology t = pm::mesh_topology(surf);
-    const std::size_t buried = pts.vertices.size() - t.vertices;
-    if (!t.closed_manifold())
-      pm::warn("the surface is not a closed manifold: " + std::to_string(t.boundary_edges) + " boundary edges, " +
-               std::to_string(t.nonmanifold_edges) + " non-manifold edges, " +
-               std::to_string(t.nonmanifold_vertices) + " non-manifold vertices");
-    if (buried > 0)
-      pm::warn(std::to_string(buried) + " particles are not on the surface (off the isosurface, or too close)");
-    if (improve > 0 && !t.closed_manifold()) {
-      // Flips and the crossing check need a closed manifold: keep the plain
-      // surface (meshstats reports what is wrong with it) rather than fail.
-      pm::warn("--improve skipped: the Delaunay surface is not a closed manifold (see above); the plain surface "
-               "is written");
+    pm::SurfaceMeshParams sp;
+    sp.inside = inside == "auto" ? pm::InsideSide::automatic
+                                 : inside == "below" ? pm::InsideSide::below : pm::InsideSide::above;
+    sp.repair = repair;
+    sp.improve = improve;
+    const pm::SurfaceMeshResult r = pm::mesh_surface_from_particles(pts, *lf.field, lf.iso, sp, pm::quote(points));
+    st["parameters"] = {{"iso", lf.iso}, {"inside", r.below ? "below" : "above"}};
+    for (const auto& w : r.warnings) pm::warn(w);
+    const pm::MeshTopology& t = r.topology;
+    if (improve > 0 && !r.improve)
       st["improve"] = {{"rounds", improve}, {"skipped", "the Delaunay surface is not a closed manifold"}};
-    } else if (improve > 0) {
-      pm::ScopedStage s("improve");
-      pm::SurfaceImproveParams ip;
-      ip.rounds = improve;
-      const pm::SurfaceImproveStats is = pm::improve_surface(surf, *lf.field, lf.iso, ip);
-      report_improve(is, improve, "valence6_share");
-    }
+    if (r.improve) report_improve(*r.improve, improve, "valence6_share");
+    const pm::Mesh& surf = r.surface;
+    const pm::TetMesh& tm = r.tets;
+    const pm::TetLabelStats& ls = r.label_stats;
+    const std::size_t relabelled = r.relabelled, buried = r.buried;
     pm::write_mesh(surf, out, {true, frame});
     if (!tets.empty()) pm::write_tet_mesh(pm::labelled_tets(tm, 0), tets, {frame});
     pm::info(std::to_string(t.vertices) + " vertices, " + std::to_string(t.faces) + " triangles, " +

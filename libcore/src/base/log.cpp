@@ -5,11 +5,16 @@
 #include <cstdio>
 #include <mutex>
 
+#include "pm/base/error.h"
+
 namespace pm {
 namespace {
 Verbosity g_verbosity = Verbosity::normal;
 std::string g_tool = "particlemesh";
 std::mutex g_mutex;
+ProgressHook g_progress_hook;
+CancelHook g_cancel_hook;
+WarningHook g_warning_hook;
 
 void emit(const std::string& msg) {
   std::lock_guard<std::mutex> lock(g_mutex);
@@ -30,7 +35,22 @@ void debug(const std::string& msg) {
   if (g_verbosity >= Verbosity::verbose) emit(msg);
 }
 void warn(const std::string& msg) {
+  {
+    std::lock_guard<std::mutex> lock(g_mutex);
+    if (g_warning_hook) g_warning_hook(msg);
+  }
   if (g_verbosity >= Verbosity::normal) emit("warning: " + msg);
+}
+
+void set_progress_hook(ProgressHook hook) { g_progress_hook = std::move(hook); }
+void set_cancel_hook(CancelHook hook) { g_cancel_hook = std::move(hook); }
+void set_warning_hook(WarningHook hook) {
+  std::lock_guard<std::mutex> lock(g_mutex);
+  g_warning_hook = std::move(hook);
+}
+
+void check_cancelled() {
+  if (g_cancel_hook && g_cancel_hook()) throw Cancelled("cancelled");
 }
 
 Progress::Progress(std::string label, std::size_t total) : label_(std::move(label)), total_(total) {}
@@ -38,6 +58,8 @@ Progress::Progress(std::string label, std::size_t total) : label_(std::move(labe
 Progress::~Progress() { finish(); }
 
 void Progress::update(std::size_t done, const std::string& detail) {
+  if (g_progress_hook) g_progress_hook(label_, done, total_, detail);
+  check_cancelled();
   if (g_verbosity == Verbosity::quiet || finished_) return;
   const double t = clock_.seconds();
   const bool tty = ::isatty(STDERR_FILENO);

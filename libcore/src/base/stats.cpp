@@ -26,6 +26,7 @@ void add_seconds(const std::string& name, double s) {
 }
 
 ScopedStage::ScopedStage(std::string name) : name_(std::move(name)), start_(now()) {
+  check_cancelled();
   test_hold_point("stage:" + name_);
 }
 

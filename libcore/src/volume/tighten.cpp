@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "pm/base/error.h"
+#include "pm/base/log.h"
 #include "pm/base/parallel.h"
 #include "pm/base/stats.h"
 #include "pm/field/distance.h"
@@ -396,6 +397,7 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
   reinit.band = 2 * w;
   const std::size_t sy = wd.nx, sz = wd.nx * wd.ny;
   for (int it = 1; it <= max_it && !active.empty(); ++it) {
+    check_cancelled();
     const double moved = flow_step(band, cur, next, lo_a, hi_a, h, dt, 1.5 * hmax);
     cur.swap(next);
     res.iterations = it;

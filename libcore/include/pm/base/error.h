@@ -31,6 +31,12 @@ struct CheckFailed : Error {
   using Error::Error;
 };
 
+/// A front end asked the run to stop (pm::check_cancelled; e.g. Ctrl-C in
+/// the Python module). Tools never see it: they install no cancel hook.
+struct Cancelled : Error {
+  using Error::Error;
+};
+
 /// Quote a file name for messages: "name".
 std::string quote(const std::string& s);
 

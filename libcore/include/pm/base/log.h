@@ -2,6 +2,7 @@
 // People-facing messages on stderr: verbosity levels, stage timers, progress.
 #include <chrono>
 #include <cstddef>
+#include <functional>
 #include <string>
 
 namespace pm {
@@ -21,6 +22,28 @@ void debug(const std::string& msg);
 /// A warning on stderr unless -q.
 void warn(const std::string& msg);
 
+/// Front-end hooks (the Python module; tools set none). All are global, for
+/// one run at a time, and called only from the thread running the long loop
+/// (never from inside pm::parallel_for), so a hook may take a lock such as
+/// Python's GIL.
+/// Progress hook: called by every Progress::update(done, detail) with the
+/// loop's label, done, total and detail, whatever the verbosity.
+using ProgressHook = std::function<void(const std::string& label, std::size_t done, std::size_t total,
+                                        const std::string& detail)>;
+void set_progress_hook(ProgressHook hook);
+/// Cancel hook: returns true when the run should stop.
+using CancelHook = std::function<bool()>;
+void set_cancel_hook(CancelHook hook);
+/// Warning hook: when set, every pm::warn also goes to it, whatever the
+/// verbosity (the Python module turns them into Python warnings). Called
+/// under the log's lock, from any thread: it must not block.
+using WarningHook = std::function<void(const std::string& msg)>;
+void set_warning_hook(WarningHook hook);
+/// Called by long loops once per iteration or stage (particle relaxation,
+/// tightening flow steps, every ScopedStage): \throw Cancelled when the
+/// cancel hook returns true. One empty-function test when no hook is set.
+void check_cancelled();
+
 /// Wall-clock stopwatch.
 class Stopwatch {
  public:
@@ -36,6 +59,7 @@ class Stopwatch {
 
 /// Progress of a long loop: a bar when stderr is a terminal, otherwise a plain
 /// line every few seconds; nothing when quiet. Cheap to call every iteration.
+/// update() also calls the progress hook (every call) and check_cancelled().
 class Progress {
  public:
   Progress(std::string label, std::size_t total);
