@@ -218,7 +218,7 @@ HpParticleResult distribute_hp_particles(const HpField& field, const HpParticleP
   const std::vector<RefSeed> seeds = reference_lattice_seeds(field, p.iso, points, lo, hi);
   res.seed_evaluations = field.field_evaluations() - f0;
   if (seeds.empty())
-    throw InputError("no isosurface u = " + engine_fmt(p.iso) + " in " + field.describe() +
+    throw InputError("no isosurface F = " + engine_fmt(p.iso) + " in " + field.describe() +
                      ": the seeding lattice's values lie in [" + engine_fmt(lo) + ", " + engine_fmt(hi) +
                      "]; expected an isovalue strictly inside the field's range");
   res.seeds = seeds.size();
