@@ -23,7 +23,7 @@ constexpr double kInsideTol = 1e-12;   // reference-space slack of "inside the e
 constexpr int kMaxCrossings = 16;      // face crossings per settle at most
 constexpr double kFlatGradient2 = 1e-300;
 constexpr int kMaxSeedPoints = 64;     // seeding lattice points per element edge at most
-constexpr double kSeedStep = 0.5;      // default seeding lattice step, × s
+constexpr double kSeedStep = 2.0;      // default seeding lattice step, × s
 }  // namespace
 
 HpConstraint::HpConstraint(const HpField& field, double iso, bool curvature, double eps)

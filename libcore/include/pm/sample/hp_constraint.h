@@ -80,9 +80,11 @@ struct HpParticleParams {
   double density = 0;      ///< curvature adaptivity rho (particles per radian), 0 = uniform
   double alpha_cap = 10;   ///< with density: local spacing never below s / alpha_cap
   double eps = 1e-12;      ///< Newton tolerance |u - c|, field units
-  /// Seeds: vertices of the lattice-baseline isosurface (pm/baseline) with
-  /// this many lattice points per element edge; 0 = enough for a step of
-  /// about s / 2 in the largest element (and at least modes + 1).
+  /// Seeds: crossings of u = c along the edges of an equispaced lattice in
+  /// each element's reference space (tetrahedra: the simplex part), this
+  /// many points per element edge; 0 = a step of about 2 s over the
+  /// element's diameter (at least modes + 1, at most 64). Population control
+  /// grows the seeds to the spacing.
   int seed_points = 0;
   double seed_thinning = 0.5;  ///< seeds closer than this × s to a kept seed are dropped (0 = keep all)
   ParticleEnergy energy = ParticleEnergy::cotangent;
