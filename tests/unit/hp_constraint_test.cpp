@@ -34,7 +34,11 @@ struct Loaded {
 
 // Two unit hexahedra side by side along x, the second turned 180 degrees
 // about z (its local xi1 runs towards -x), with u = z (exact in Modified_A).
-Loaded two_hexes_linear_z() {
+Loaded two_hexes_linear(double ax);
+Loaded two_hexes_linear_z() { return two_hexes_linear(0); }
+
+// u = z + ax x on the two hexahedra (a sum of two Modified_A products).
+Loaded two_hexes_linear(double ax) {
   GenMesh m;
   int v[3][2][2];
   for (int i = 0; i < 3; ++i)
@@ -42,15 +46,18 @@ Loaded two_hexes_linear_z() {
       for (int k = 0; k < 2; ++k) v[i][j][k] = m.vertex({double(i), double(j), double(k)});
   m.add_hex({v[0][0][0], v[1][0][0], v[1][1][0], v[0][1][0], v[0][0][1], v[1][0][1], v[1][1][1], v[0][1][1]});
   m.add_hex({v[2][1][0], v[1][1][0], v[1][0][0], v[2][0][0], v[2][1][1], v[1][1][1], v[1][0][1], v[2][0][1]});
-  const std::array<std::array<double, 4>, 3> g = {{{1, 0, 0, 0}, {1, 0, 0, 0}, {0, 1, 0, 0}}};
+  const std::array<std::array<double, 4>, 3> gz = {{{1, 0, 0, 0}, {1, 0, 0, 0}, {0, 1, 0, 0}}};
+  const std::array<std::array<double, 4>, 3> gx = {{{0, ax, 0, 0}, {1, 0, 0, 0}, {1, 0, 0, 0}}};
   GenBlock blk;
   blk.ids = "0-1";
   for (const auto& lohi : {std::make_pair(Vec3{0, 0, 0}, Vec3{1, 1, 1}), std::make_pair(Vec3{2, 1, 0}, Vec3{1, 0, 1})}) {
-    const auto c = test::hex_product_coeffs(g, lohi.first, lohi.second);
-    blk.coeffs.insert(blk.coeffs.end(), c.begin(), c.end());
+    const auto cz = test::hex_product_coeffs(gz, lohi.first, lohi.second);
+    const auto cx = test::hex_product_coeffs(gx, lohi.first, lohi.second);
+    for (std::size_t k = 0; k < cz.size(); ++k) blk.coeffs.push_back(cz[k] + cx[k]);
   }
-  return {read_nektar_mesh(write("hpc_hex2.xml", test::mesh_xml(m, false))),
-          read_nektar_field(write("hpc_hex2.fld", test::field_xml({blk})))};
+  const std::string tag = std::to_string(int(ax * 100));
+  return {read_nektar_mesh(write("hpc_hex2_" + tag + ".xml", test::mesh_xml(m, false))),
+          read_nektar_field(write("hpc_hex2_" + tag + ".fld", test::field_xml({blk})))};
 }
 
 Loaded shared(const std::string& dir, const std::string& name) {
@@ -81,6 +88,25 @@ TEST(HpConstraint, MoveCrossesAHexFaceOnAnExactPlane) {
   EXPECT_EQ(p.s.element, 1);
   EXPECT_NEAR(p.x.x, 2, 1e-12);
   EXPECT_NEAR(p.x.z, 0.3, 1e-12);
+}
+
+// The plane u = z + x/4 = 0.6 meets the wall x = 2 obliquely: a move out
+// through the wall ends on the line x = 2, z = 0.1 (Newton within the
+// wall's plane), keeping the move's y.
+TEST(HpConstraint, SlidesAlongAnObliqueBoundaryFace) {
+  const Loaded t = two_hexes_linear(0.25);
+  const HpField f(t.mesh, t.field, "u");
+  const HpConstraint c(f, 0.6, false);
+  HpConstraint::Point p, q;
+  Probe pr;
+  ASSERT_TRUE(c.place({1.8, 0.5, 0.2}, HpConstraint::Point{}, 20, 0, p, pr));
+  EXPECT_EQ(p.s.element, 1);
+  EXPECT_NEAR(p.x.z + 0.25 * p.x.x, 0.6, 1e-12);
+  const Vec3 step = c.tangent(p, Vec3{0.5, 0.1, 0});
+  ASSERT_TRUE(c.move(p, step, 6, 0, q, pr));
+  EXPECT_NEAR(q.x.x, 2, 1e-12);
+  EXPECT_NEAR(q.x.z, 0.1, 1e-12);
+  EXPECT_NEAR(q.x.y, p.x.y + step.y, 1e-12);
 }
 
 // chan3D's six tetrahedra: a tangent move on the exact plane z = 1/sqrt(2)

@@ -22,6 +22,7 @@ namespace {
 constexpr double kInsideTol = 1e-12;   // reference-space slack of "inside the element"
 constexpr int kMaxCrossings = 16;      // face crossings per settle at most
 constexpr double kFlatGradient2 = 1e-300;
+constexpr double kWallGradient2 = 1e-6;  // |g within a boundary face|² / |g|² below this: the surface is parallel to it
 constexpr int kMaxSeedPoints = 64;     // seeding lattice points per element edge at most
 constexpr double kSeedStep = 2.0;      // default seeding lattice step, × s
 }  // namespace
@@ -29,7 +30,8 @@ constexpr double kSeedStep = 2.0;      // default seeding lattice step, × s
 HpConstraint::HpConstraint(const HpField& field, double iso, bool curvature, double eps)
     : f_(field), iso_(iso), curvature_(curvature), eps_(eps) {}
 
-bool HpConstraint::settle(int& elem, Vec3& xi) const {
+bool HpConstraint::settle(int& elem, Vec3& xi, int* wall) const {
+  if (wall) *wall = -1;
   for (int k = 0; k <= kMaxCrossings; ++k) {
     if (!is_finite(xi)) return false;
     const int face = f_.exit_face(elem, xi, kInsideTol);
@@ -37,6 +39,7 @@ bool HpConstraint::settle(int& elem, Vec3& xi) const {
     const RefPoint r = f_.cross_face(elem, face, xi);
     if (r.elem < 0) {  // a boundary face: stop on the mesh boundary
       xi = f_.clamp_to_element(elem, xi);
+      if (wall) *wall = face;
       return true;
     }
     elem = r.elem;
@@ -45,8 +48,19 @@ bool HpConstraint::settle(int& elem, Vec3& xi) const {
   return false;
 }
 
+namespace {
+// Outward normal of local face `face` in reference coordinates (see pm/field/hp_field.h).
+Vec3 reference_face_normal(NektarShape shape, int face) {
+  static const Vec3 tet[4] = {{0, 0, -1}, {0, -1, 0}, {1, 1, 1}, {-1, 0, 0}};
+  static const Vec3 hex[6] = {{0, 0, -1}, {0, -1, 0}, {1, 0, 0}, {0, 1, 0}, {-1, 0, 0}, {0, 0, 1}};
+  return shape == NektarShape::Tetrahedron ? tet[face] : hex[face];
+}
+}  // namespace
+
 bool HpConstraint::project(int elem, Vec3 xi, int steps, Point& out, Probe& pr) const {
-  if (!settle(elem, xi)) return pr.fail(is_finite(xi) ? ProjectFailure::left_domain : ProjectFailure::non_finite);
+  int wall = -1;  // boundary face of elem that xi was clamped onto, -1 when none
+  if (!settle(elem, xi, &wall))
+    return pr.fail(is_finite(xi) ? ProjectFailure::left_domain : ProjectFailure::non_finite);
   for (int k = 0;; ++k) {
     ++pr.evaluations;
     const HpSample s = f_.sample(elem, xi);
@@ -66,10 +80,21 @@ bool HpConstraint::project(int elem, Vec3 xi, int steps, Point& out, Probe& pr) 
     }
     if (k >= steps) return pr.fail(ProjectFailure::no_convergence);
     if (!(gg > kFlatGradient2)) return pr.fail(ProjectFailure::flat);
-    // Minimum-norm world correction -(r/|g|²) g, pulled back with K.
-    xi -= s.K * (s.grad * (r / gg));
+    // Minimum-norm world correction -(r/|g|²) g, pulled back with K; on a
+    // boundary face, when that correction points out of the mesh, the
+    // minimum-norm correction within the face's plane instead.
+    Vec3 dx = s.grad * (-r / gg);
+    if (wall >= 0) {
+      const Vec3 m = normalized(transpose(s.K) * reference_face_normal(f_.shape(elem), wall));
+      if (dot(dx, m) > 0) {
+        const Vec3 gt = s.grad - m * dot(s.grad, m);
+        const double gt2 = norm2(gt);
+        if (gt2 > kWallGradient2 * gg) dx = gt * (-r / gt2);
+      }
+    }
+    xi += s.K * dx;
     if (!is_finite(xi)) return pr.fail(ProjectFailure::non_finite);
-    if (!settle(elem, xi)) return pr.fail(ProjectFailure::left_domain);
+    if (!settle(elem, xi, &wall)) return pr.fail(ProjectFailure::left_domain);
   }
 }
 

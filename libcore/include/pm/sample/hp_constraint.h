@@ -17,9 +17,10 @@
 // the point continues in the neighbour element through the face it left by
 // (HpField::cross_face, world-exact for straight-sided elements); a point
 // that leaves through a boundary face is clamped onto that face (xi closest
-// in the reference element) and Newton goes on from there, so particles
-// slide along the mesh boundary where the isosurface meets it instead of
-// sticking (Newton that cannot converge there fails: no_convergence).
+// in the reference element) and Newton goes on from there within that
+// face's plane (the minimum-norm correction tangent to the face, used when
+// the free one points out of the mesh), so particles slide along the curve
+// where the isosurface meets the mesh boundary instead of sticking.
 //
 // Pair energies are computed from world positions, so the packing is
 // uniform on the world surface however the elements distort it.
@@ -65,7 +66,8 @@ class HpConstraint : public SurfaceRules {
  private:
   // Bring (elem, xi) into the element that holds it, crossing faces and
   // clamping onto boundary faces; false on non-finite xi or too many crossings.
-  bool settle(int& elem, Vec3& xi) const;
+  // *wall: the boundary face of the final elem that xi was clamped onto (or -1).
+  bool settle(int& elem, Vec3& xi, int* wall = nullptr) const;
   bool project(int elem, Vec3 xi, int steps, Point& out, Probe& pr) const;
 
   const HpField& f_;
