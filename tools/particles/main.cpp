@@ -87,6 +87,8 @@ void run_hp(const std::string& mesh_path, const std::string& field_arg, const pm
   const std::size_t colon = field_arg.rfind(':');
   if (colon == std::string::npos || colon == 0 || colon + 1 == field_arg.size())
     throw pm::UsageError("--field expects FILE.fld:VARIABLE (e.g. chan3D.fld:u), got " + pm::quote(field_arg));
+  if (frame != pm::WorldFrame::lps)
+    throw pm::UsageError("--frame does not apply with --field: the mesh's coordinates are written as they are");
   if (pm::file_extension(output) != ".ply")
     throw pm::UsageError("with --field the output must be .ply (positions are written as double), got " +
                          pm::quote(output));
@@ -135,7 +137,7 @@ void run_hp(const std::string& mesh_path, const std::string& field_arg, const pm
   m.vertex_scalars["spacing"] = r.spacing;
   {
     pm::ScopedStage stage("write");
-    pm::write_atomically(output, [&](const std::string& tmp) { pm::write_ply(m, tmp, true, frame, true); });
+    pm::write_atomically(output, [&](const std::string& tmp) { pm::write_ply(m, tmp, true, pm::WorldFrame::lps, true); });
   }
   double worst = 0;
   for (double v : r.residual) worst = std::max(worst, v);
