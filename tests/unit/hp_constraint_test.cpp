@@ -224,6 +224,33 @@ TEST(HpParticles, Chan3DHalfLevelAtRoundOffLatticeBaselineIsNot) {
   EXPECT_LE(double(inner), 1.27 * estimate);
 }
 
+// Coarse-to-fine (4 levels from the default start, 4 x the field's
+// resolution 2/3) ends on the same exact surface, with particles in all six
+// elements and the interior count in population control's band.
+TEST(HpParticles, Chan3DCoarseToFine) {
+  PM_REQUIRE_SHARED(dir, "nektar-highorder");
+  const Loaded t = shared(dir, "chan3D");
+  const HpField f(t.mesh, t.field, "u");
+  HpParticleParams p;
+  p.iso = 0.5;
+  p.spacing = 0.1;
+  p.coarse_to_fine = true;
+  p.progress = false;
+  const HpParticleResult r = distribute_hp_particles(f, p);
+  EXPECT_EQ(r.levels, 5);
+  double worst = 0;
+  for (const Vec3& x : r.positions) worst = std::max(worst, std::fabs(std::fabs(x.z) - 1 / std::sqrt(2.0)));
+  EXPECT_LE(worst, 1e-12);
+  EXPECT_EQ(std::set<int>(r.element.begin(), r.element.end()).size(), 6u);
+  const double a = 1 - p.spacing;
+  std::size_t inner = 0;
+  for (const Vec3& x : r.positions) inner += std::fabs(x.x) < a && std::fabs(x.y) < a;
+  const double estimate = 2 * (2 * a) * (2 * a) / (std::sqrt(3.0) / 2 * p.spacing * p.spacing);
+  EXPECT_GE(double(inner), 0.86 * estimate);
+  EXPECT_LE(double(inner), 1.27 * estimate);
+  EXPECT_LE(cv(nearest(r.positions)), 0.1);
+}
+
 // Tet_channel_m3, w = y(1 - y) = 0.2: y = (1 ± sqrt(0.2)) / 2 to round-off
 // in all 48 tetrahedra.
 TEST(HpParticles, TetChannelM3ParabolaLevelAtRoundOff) {

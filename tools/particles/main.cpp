@@ -118,6 +118,8 @@ void run_hp(const std::string& mesh_path, const std::string& field_arg, const pm
   hp.population_tolerance = p.population_tolerance;
   hp.seed = p.seed;
   hp.settled_move = p.settled_move;
+  hp.coarse_to_fine = p.coarse_to_fine;
+  hp.coarse_start = p.coarse_start;
   const pm::HpParticleResult r = pm::distribute_hp_particles(field, hp);
   pm::Mesh m;
   m.vertices = r.positions;
@@ -229,7 +231,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   auto* ctf = tool.app.add_flag("--coarse-to-fine,!--no-coarse-to-fine", coarse,
                                 "Converge with spacings x 2^k, split each particle into 4, halve, repeat down to "
-                                "the requested spacing (default: on for volumes, off for --implicit)");
+                                "the requested spacing (default: on for volumes, off for --implicit and --field)");
   tool.app.add_option("--coarse-start", p.coarse_start, "Coarsest spacing, world units (0 = 4 voxel widths / "
                                                         "field resolutions)")
       ->capture_default_str();
@@ -254,8 +256,9 @@ int main(int argc, char** argv) {
     if (!hp_field.empty()) {
       if (input.empty() || !implicit.empty()) throw pm::UsageError("--field needs -i MESH.xml (and no --implicit)");
       if (!spacing->count()) throw pm::UsageError("--spacing S (world units of the mesh) is required");
-      if (!sizing_path.empty() || !seeds_path.empty() || p.count || ctf->count() || lattice->count())
-        throw pm::UsageError("--sizing, --init, --count, --coarse-to-fine and --lattice-init do not apply with --field");
+      if (!sizing_path.empty() || !seeds_path.empty() || p.count || lattice->count())
+        throw pm::UsageError("--sizing, --init, --count and --lattice-init do not apply with --field");
+      p.coarse_to_fine = ctf->count() ? coarse : false;
       pm::stats()["inputs"] = {{"mesh", input}, {"field", hp_field}};
       pm::stats()["parameters"] = {{"iso", p.iso}, {"spacing", p.spacing}, {"density", p.density}};
       return run_hp(input, hp_field, p, output, frame);

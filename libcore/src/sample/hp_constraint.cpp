@@ -25,6 +25,8 @@ constexpr double kFlatGradient2 = 1e-300;
 constexpr double kWallGradient2 = 1e-6;  // |g within a boundary face|² / |g|² below this: the surface is parallel to it
 constexpr int kMaxSeedPoints = 64;     // seeding lattice points per element edge at most
 constexpr double kSeedStep = 2.0;      // default seeding lattice step, × s
+constexpr int kMaxLevels = 8;          // coarse-to-fine levels at most
+constexpr double kCoarseResolutions = 4;  // default coarsest spacing: 4 field resolutions
 }  // namespace
 
 HpConstraint::HpConstraint(const HpField& field, double iso, bool curvature, double eps)
@@ -228,13 +230,19 @@ HpParticleResult distribute_hp_particles(const HpField& field, const HpParticleP
   HpParticleResult res;
   const std::uint64_t f0 = field.field_evaluations(), m0 = field.map_evaluations();
 
+  int levels = 0;
+  if (p.coarse_to_fine) {
+    const double start = p.coarse_start > 0 ? p.coarse_start : kCoarseResolutions * field.resolution();
+    while (levels < kMaxLevels && p.spacing * std::ldexp(1.0, levels + 1) <= start * (1 + 1e-9)) ++levels;
+  }
+  const double seed_spacing = p.spacing * std::ldexp(1.0, levels);
   // Seeds: crossings of a reference lattice per element.
   std::vector<int> points(static_cast<std::size_t>(field.num_elements()));
   for (int e = 0; e < field.num_elements(); ++e) {
     const auto md = field.modes(e);
     int n = p.seed_points;
     if (n == 0) {
-      const double want = std::ceil(element_diameter(field, e) / (kSeedStep * p.spacing)) + 1;
+      const double want = std::ceil(element_diameter(field, e) / (kSeedStep * seed_spacing)) + 1;
       n = std::max(*std::max_element(md.begin(), md.end()) + 1, int(std::min<double>(want, kMaxSeedPoints)));
     }
     points[static_cast<std::size_t>(e)] = n;
@@ -273,10 +281,10 @@ HpParticleResult distribute_hp_particles(const HpField& field, const HpParticleP
     throw InputError("no seed of the " + std::to_string(seeds.size()) + " lattice crossings reached u = " +
                      engine_fmt(p.iso) + " in " + field.describe() + " within " +
                      std::to_string(engine_constants::kPlaceSteps) + " Newton steps");
-  eng.set_scale(1.0);
+  eng.set_scale(std::ldexp(1.0, levels));
   eng.refresh_spacings();
   eng.set_anchors_from_particles();
-  eng.guard_anchors();
+  if (levels == 0) eng.guard_anchors();
   if (p.seed_thinning > 0) {
     auto& parts = eng.particles();
     std::vector<Vec3> xs(parts.size());
@@ -293,11 +301,21 @@ HpParticleResult distribute_hp_particles(const HpField& field, const HpParticleP
     parts.swap(kept);
   }
 
-  const Engine::LevelResult lr = eng.relax("relax", false);
-  res.iterations = lr.iterations;
-  res.converged = lr.converged;
-  res.splits = lr.splits;
-  res.deletions = lr.deletions;
+  for (int level = levels; level >= 0; --level) {
+    if (level == 0 && levels > 0) {  // from here on every anchor keeps a particle near it
+      eng.guard_anchors();
+      eng.refill_holes();
+    }
+    const std::string label =
+        levels > 0 ? "level " + std::to_string(levels - level + 1) + "/" + std::to_string(levels + 1) : "relax";
+    const Engine::LevelResult lr = eng.relax(label, false);
+    res.iterations += lr.iterations;
+    res.converged = lr.converged;
+    res.splits += lr.splits;
+    res.deletions += lr.deletions;
+    if (level > 0) eng.split_all();
+  }
+  res.levels = levels + 1;
 
   const double energy = eng.measure();
   // Output in a deterministic order: element, then position.

@@ -89,6 +89,10 @@ struct HpParticleParams {
   /// grows the seeds to the spacing.
   int seed_points = 0;
   double seed_thinning = 0.5;  ///< seeds closer than this × s to a kept seed are dropped (0 = keep all)
+  /// Coarse-to-fine: converge at spacing s 2^k (k = floor(log2(coarse_start / s)), at most 8),
+  /// split every particle into 4, halve, repeat down to s.
+  bool coarse_to_fine = false;
+  double coarse_start = 0;  ///< coarsest spacing, world units (0 = 4 × the field's resolution)
   ParticleEnergy energy = ParticleEnergy::cotangent;
   double tolerance = 0.0015;
   int max_iters = 2000;
@@ -108,6 +112,7 @@ struct HpParticleResult {
   std::vector<double> residual;  ///< #N |u - c| of our evaluator at the particle
   std::vector<double> energy, spacing;  ///< #N particle energy, local spacing (world units)
   int iterations = 0;
+  int levels = 1;  ///< coarse-to-fine levels run
   bool converged = false;
   std::size_t seeds = 0, thinned = 0, dropped_init = 0, splits = 0, deletions = 0;
   /// Forward evaluations of the element polynomials F* and of the maps T
