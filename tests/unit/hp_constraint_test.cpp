@@ -34,11 +34,9 @@ struct Loaded {
 
 // Two unit hexahedra side by side along x, the second turned 180 degrees
 // about z (its local xi1 runs towards -x), with u = z (exact in Modified_A).
-Loaded two_hexes_linear(double ax);
-Loaded two_hexes_linear_z() { return two_hexes_linear(0); }
-
-// u = z + ax x on the two hexahedra (a sum of two Modified_A products).
-Loaded two_hexes_linear(double ax) {
+// u = z + a_e x + b_e on the two hexahedra e = 0, 1 (sums of Modified_A
+// products): linear in each, C0 across x = 1 when a_0 + b_0 = a_1 + b_1.
+Loaded two_hexes(double a0, double b0, double a1, double b1) {
   GenMesh m;
   int v[3][2][2];
   for (int i = 0; i < 3; ++i)
@@ -47,18 +45,23 @@ Loaded two_hexes_linear(double ax) {
   m.add_hex({v[0][0][0], v[1][0][0], v[1][1][0], v[0][1][0], v[0][0][1], v[1][0][1], v[1][1][1], v[0][1][1]});
   m.add_hex({v[2][1][0], v[1][1][0], v[1][0][0], v[2][0][0], v[2][1][1], v[1][1][1], v[1][0][1], v[2][0][1]});
   const std::array<std::array<double, 4>, 3> gz = {{{1, 0, 0, 0}, {1, 0, 0, 0}, {0, 1, 0, 0}}};
-  const std::array<std::array<double, 4>, 3> gx = {{{0, ax, 0, 0}, {1, 0, 0, 0}, {1, 0, 0, 0}}};
   GenBlock blk;
   blk.ids = "0-1";
-  for (const auto& lohi : {std::make_pair(Vec3{0, 0, 0}, Vec3{1, 1, 1}), std::make_pair(Vec3{2, 1, 0}, Vec3{1, 0, 1})}) {
-    const auto cz = test::hex_product_coeffs(gz, lohi.first, lohi.second);
-    const auto cx = test::hex_product_coeffs(gx, lohi.first, lohi.second);
+  const std::pair<Vec3, Vec3> box[2] = {{Vec3{0, 0, 0}, Vec3{1, 1, 1}}, {Vec3{2, 1, 0}, Vec3{1, 0, 1}}};
+  for (int e = 0; e < 2; ++e) {
+    const std::array<std::array<double, 4>, 3> gx = {
+        {{e ? b1 : b0, e ? a1 : a0, 0, 0}, {1, 0, 0, 0}, {1, 0, 0, 0}}};
+    const auto cz = test::hex_product_coeffs(gz, box[e].first, box[e].second);
+    const auto cx = test::hex_product_coeffs(gx, box[e].first, box[e].second);
     for (std::size_t k = 0; k < cz.size(); ++k) blk.coeffs.push_back(cz[k] + cx[k]);
   }
-  const std::string tag = std::to_string(int(ax * 100));
-  return {read_nektar_mesh(write("hpc_hex2_" + tag + ".xml", test::mesh_xml(m, false))),
-          read_nektar_field(write("hpc_hex2_" + tag + ".fld", test::field_xml({blk})))};
+  char tag[96];
+  std::snprintf(tag, sizeof tag, "hpc_hex2_%g_%g_%g_%g", a0, b0, a1, b1);
+  return {read_nektar_mesh(write(std::string(tag) + ".xml", test::mesh_xml(m, false))),
+          read_nektar_field(write(std::string(tag) + ".fld", test::field_xml({blk})))};
 }
+Loaded two_hexes_linear(double ax) { return two_hexes(ax, 0, ax, 0); }
+Loaded two_hexes_linear_z() { return two_hexes_linear(0); }
 
 Loaded shared(const std::string& dir, const std::string& name) {
   return {read_nektar_mesh(dir + "/" + name + ".xml"), read_nektar_field(dir + "/" + name + ".fld")};
@@ -107,6 +110,28 @@ TEST(HpConstraint, SlidesAlongAnObliqueBoundaryFace) {
   EXPECT_NEAR(q.x.x, 2, 1e-12);
   EXPECT_NEAR(q.x.z, 0.1, 1e-12);
   EXPECT_NEAR(q.x.y, p.x.y + step.y, 1e-12);
+}
+
+// u = z + 2 |x - 1| has a kink at the shared face x = 1 steeper than 45
+// degrees, where Newton with either side's gradient overshoots across the
+// face and back, converging only linearly (|x - 1| x 0.6 per step): from
+// points above the ridge, 6 steps still reach the exact surface
+// z = 0.5 - 2 |x - 1| (once stalled, Newton goes on within the face).
+TEST(HpConstraint, ProjectsOntoAKinkAtAnElementFace) {
+  const Loaded t = two_hexes(-2, 2, 2, -2);
+  const HpField f(t.mesh, t.field, "u");
+  const HpConstraint c(f, 0.5, false);
+  int on_face = 0;
+  for (int i = 0; i <= 10; ++i)
+    for (int k = 0; k <= 10; ++k) {
+      const Vec3 x0{0.9 + 0.02 * i, 0.5, 0.55 + 0.04 * k};  // above the ridge: u > 0.5
+      HpConstraint::Point p;
+      Probe pr;
+      ASSERT_TRUE(c.place(x0, HpConstraint::Point{}, 6, 0, p, pr)) << x0.x << " " << x0.z;
+      EXPECT_NEAR(p.x.z, 0.5 - 2 * std::fabs(p.x.x - 1), 1e-12) << x0.x << " " << x0.z;
+      on_face += std::fabs(p.x.x - 1) < 1e-9;
+    }
+  EXPECT_GT(on_face, 0);
 }
 
 // chan3D's six tetrahedra: a tangent move on the exact plane z = 1/sqrt(2)

@@ -25,6 +25,7 @@ constexpr double kFlatGradient2 = 1e-300;
 constexpr double kWallGradient2 = 1e-6;  // |g within a boundary face|² / |g|² below this: the surface is parallel to it
 constexpr int kMaxSeedPoints = 64;     // seeding lattice points per element edge at most
 constexpr double kSeedStep = 2.0;      // default seeding lattice step, × s
+constexpr double kNewtonStall = 0.25;  // |r| above this × the last |r| after a face crossing: Newton stalled at a kink
 constexpr int kMaxLevels = 8;          // coarse-to-fine levels at most
 constexpr double kCoarseResolutions = 4;  // default coarsest spacing: 4 field resolutions
 }  // namespace
@@ -59,44 +60,79 @@ Vec3 reference_face_normal(NektarShape shape, int face) {
 }
 }  // namespace
 
+bool HpConstraint::accept(int elem, const Vec3& xi, const HpSample& s, Point& out, Probe& pr) const {
+  const double gg = norm2(s.grad);
+  if (!(gg > kFlatGradient2)) return pr.fail(ProjectFailure::flat);
+  out.x = s.x;
+  out.n = s.grad / std::sqrt(gg);
+  out.s.element = std::int32_t(elem);
+  out.s.xi = xi;
+  out.s.K = s.K;
+  out.s.residual = s.f - iso_;
+  out.s.curvedness = curvature_ ? curvedness_of(s.grad, s.hess) : 0.0;
+  return true;
+}
+
 bool HpConstraint::project(int elem, Vec3 xi, int steps, Point& out, Probe& pr) const {
-  int wall = -1;  // boundary face of elem that xi was clamped onto, -1 when none
+  // wall: a face of elem that xi lies on and that Newton must not leave by
+  // (a boundary face it was clamped onto, or an element face where the
+  // field's kink stalled Newton), -1 when none.
+  int wall = -1;
   if (!settle(elem, xi, &wall))
     return pr.fail(is_finite(xi) ? ProjectFailure::left_domain : ProjectFailure::non_finite);
+  Vec3 xi_try;
+  double r_prev = 0;
+  int e_prev = -1;
+  bool crossed = false;
   for (int k = 0;; ++k) {
     ++pr.evaluations;
     const HpSample s = f_.sample(elem, xi);
     const double r = s.f - iso_;
     if (!std::isfinite(r) || !is_finite(s.grad)) return pr.fail(ProjectFailure::non_finite);
     const double gg = norm2(s.grad);
-    if (std::fabs(r) <= eps_) {
-      if (!(gg > kFlatGradient2)) return pr.fail(ProjectFailure::flat);
-      out.x = s.x;
-      out.n = s.grad / std::sqrt(gg);
-      out.s.element = std::int32_t(elem);
-      out.s.xi = xi;
-      out.s.K = s.K;
-      out.s.residual = r;
-      out.s.curvedness = curvature_ ? curvedness_of(s.grad, s.hess) : 0.0;
-      return true;
-    }
+    if (std::fabs(r) <= eps_) return accept(elem, xi, s, out, pr);
     if (k >= steps) return pr.fail(ProjectFailure::no_convergence);
+    const bool stalled = e_prev >= 0 && std::fabs(r) > kNewtonStall * std::fabs(r_prev);
+    if (stalled && crossed) {
+      // The step crossed an element face and Newton stalled (the field is
+      // only C0 there): go back to where the step crossed the face and go
+      // on within the face's plane.
+      elem = e_prev;
+      wall = f_.exit_face(elem, xi_try, 0);
+      xi = f_.clamp_to_element(elem, xi_try);
+      crossed = false;
+      e_prev = -1;
+      continue;
+    }
     if (!(gg > kFlatGradient2)) return pr.fail(ProjectFailure::flat);
+    r_prev = r;
+    e_prev = elem;
     // Minimum-norm world correction -(r/|g|²) g, pulled back with K; on a
-    // boundary face, when that correction points out of the mesh, the
+    // wall face, when that correction points out through it, the
     // minimum-norm correction within the face's plane instead.
     Vec3 dx = s.grad * (-r / gg);
+    bool constrained = false;
     if (wall >= 0) {
       const Vec3 m = normalized(transpose(s.K) * reference_face_normal(f_.shape(elem), wall));
       if (dot(dx, m) > 0) {
         const Vec3 gt = s.grad - m * dot(s.grad, m);
         const double gt2 = norm2(gt);
-        if (gt2 > kWallGradient2 * gg) dx = gt * (-r / gt2);
+        if (gt2 > kWallGradient2 * gg) {
+          dx = gt * (-r / gt2);
+          constrained = true;
+        }
       }
     }
     xi += s.K * dx;
+    xi_try = xi;
     if (!is_finite(xi)) return pr.fail(ProjectFailure::non_finite);
-    if (!settle(elem, xi, &wall)) return pr.fail(ProjectFailure::left_domain);
+    int w = -1;
+    if (!settle(elem, xi, &w)) return pr.fail(ProjectFailure::left_domain);
+    crossed = elem != e_prev;
+    if (w >= 0)
+      wall = w;
+    else if (!(constrained && !crossed))
+      wall = -1;
   }
 }
 

@@ -20,7 +20,11 @@
 // in the reference element) and Newton goes on from there within that
 // face's plane (the minimum-norm correction tangent to the face, used when
 // the free one points out of the mesh), so particles slide along the curve
-// where the isosurface meets the mesh boundary instead of sticking.
+// where the isosurface meets the mesh boundary instead of sticking. The
+// field is only C0 across element faces: where a Newton step crosses a face
+// and the residual does not shrink below 1/4 (Newton zig-zagging over a
+// kink, linear convergence), the point goes back to where the step crossed
+// the face and Newton goes on within that face's plane, the same way.
 //
 // Pair energies are computed from world positions, so the packing is
 // uniform on the world surface however the elements distort it.
@@ -69,6 +73,7 @@ class HpConstraint : public SurfaceRules {
   // *wall: the boundary face of the final elem that xi was clamped onto (or -1).
   bool settle(int& elem, Vec3& xi, int* wall = nullptr) const;
   bool project(int elem, Vec3 xi, int steps, Point& out, Probe& pr) const;
+  bool accept(int elem, const Vec3& xi, const HpSample& s, Point& out, Probe& pr) const;
 
   const HpField& f_;
   double iso_;
