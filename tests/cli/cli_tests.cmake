@@ -67,6 +67,10 @@ pm_cli_test(particles.bad_kernel "particles: usage error: --kernel: cubic not in
 pm_cli_test(particles.bad_output "particles: usage error: --output .*pm_p.xyz.*: unknown point set extension \".xyz\"; expected one of .ply .vtp .vtk" ${PT} --implicit sphere --spacing 0.3 -o /tmp/pm_p.xyz)
 pm_cli_test(particles.sizing_and_spacing "particles: usage error: give --spacing or --sizing, not both" ${PT} --implicit sphere --spacing 0.3 --sizing ${PTD}/onevoxel.nrrd -o /tmp/pm_p.ply)
 pm_cli_script(particles.workflow particles_test.sh)
+# Chapter 4: particles --field on the shared Nektar++ fields (77 = skipped without ../shared/data)
+pm_cli_script(particles.hp_field hp_particles_test.sh)
+set_tests_properties(cli.particles.hp_field PROPERTIES SKIP_RETURN_CODE 77)
+pm_cli_test(particles.hp_help "--field.*Nektar.*particles -i chan3D.xml --field chan3D.fld:u" ${PT} --help)
 # == render
 set(RD $<TARGET_FILE:render>)
 pm_cli_test(render.missing_file "render: error: .*nope.ply.*no such file" ${RD} ${D}/nope.ply -o /tmp/pm_r.png)

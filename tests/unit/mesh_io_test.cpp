@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <algorithm>
 #include <cstdint>
 #include <cstring>
@@ -93,6 +95,36 @@ TEST(Ply, PointSetHasNoFaceElement) {
   const std::string text((std::istreambuf_iterator<char>(f)), {});
   EXPECT_EQ(text.find("element face"), std::string::npos);
   expect_same(read_ply(path), m);
+}
+
+// write_ply's doubles option keeps every bit of positions, normals and
+// scalars (ASCII %.17g and binary), where float rounds 1/sqrt(2) by ~1e-8.
+TEST(Ply, DoublesKeepEveryBit) {
+  Mesh m;
+  const double z = 1 / std::sqrt(2.0);
+  m.vertices = {{z, -z / 3, 1e-300}, {12345.678901234567, z * 1e-9, -z}};
+  m.normals = {{0, 0, 1}, {z, z, 0}};
+  m.vertex_scalars["residual"] = {1e-17, 2.5e-13};
+  for (bool binary : {false, true}) {
+    const std::string path = test::temp_dir() + "/d.ply";
+    write_ply(m, path, binary, WorldFrame::lps, true);
+    std::ifstream f(path);
+    const std::string text((std::istreambuf_iterator<char>(f)), {});
+    EXPECT_NE(text.find("property double x"), std::string::npos);
+    EXPECT_NE(text.find("property double residual"), std::string::npos);
+    const Mesh r = read_ply(path);
+    ASSERT_EQ(r.vertices.size(), 2u);
+    for (std::size_t i = 0; i < 2; ++i)
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_EQ(r.vertices[i][c], m.vertices[i][c]) << binary;
+        EXPECT_EQ(r.normals[i][c], m.normals[i][c]) << binary;
+      }
+    EXPECT_EQ(r.vertex_scalars.at("residual"), m.vertex_scalars.at("residual"));
+  }
+  // The float default rounds: 1/sqrt(2) comes back off by more than 1e-9.
+  const std::string path = test::temp_dir() + "/f.ply";
+  write_ply(m, path, true);
+  EXPECT_GT(std::fabs(read_ply(path).vertices[0].x - z), 1e-9);
 }
 
 TEST(Ply, BigEndianWrittenByHand) {

@@ -1,5 +1,6 @@
 // particles: sample an implicit surface or a volume's isosurface with the
 // dynamic particle system of SPEC §3 (Meyer 2008, Chapter 3).
+#include <algorithm>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -18,6 +19,10 @@
 #include "pm/sample/particles.h"
 #include "pm/cli/frame_option.h"
 #include "pm/io/output_path.h"
+#include "pm/field/hp_field.h"
+#include "pm/io/nektar.h"
+#include "pm/io/ply.h"
+#include "pm/sample/hp_constraint.h"
 
 namespace {
 
@@ -75,6 +80,90 @@ pm::Mesh to_mesh(const pm::ParticleResult& r) {
   return m;
 }
 
+// Chapter 4: particles in the reference spaces of a Nektar++ field
+// (mesh.xml + field.fld:VARIABLE), written as a double-precision PLY.
+void run_hp(const std::string& mesh_path, const std::string& field_arg, const pm::ParticleParams& p,
+            const std::string& output, pm::WorldFrame frame) {
+  const std::size_t colon = field_arg.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 == field_arg.size())
+    throw pm::UsageError("--field expects FILE.fld:VARIABLE (e.g. chan3D.fld:u), got " + pm::quote(field_arg));
+  if (frame != pm::WorldFrame::lps)
+    throw pm::UsageError("--frame does not apply with --field: the mesh's coordinates are written as they are");
+  if (pm::file_extension(output) != ".ply")
+    throw pm::UsageError("with --field the output must be .ply (positions are written as double), got " +
+                         pm::quote(output));
+  const std::string fld_path = field_arg.substr(0, colon), var = field_arg.substr(colon + 1);
+  std::unique_ptr<pm::ScopedStage> read = std::make_unique<pm::ScopedStage>("read");
+  const pm::NektarMesh mesh = pm::read_nektar_mesh(mesh_path);
+  const pm::NektarField fld = pm::read_nektar_field(fld_path);
+  bool has = false;
+  std::string names;
+  for (const auto& n : fld.names) {
+    has = has || n == var;
+    names += (names.empty() ? "" : " ") + n;
+  }
+  if (!has)
+    throw pm::InputError("field " + pm::quote(fld_path) + " has no variable " + pm::quote(var) +
+                         "; expected one of: " + names);
+  const pm::HpField field(mesh, fld, var);
+  read.reset();
+  pm::HpParticleParams hp;
+  hp.iso = p.iso;
+  hp.spacing = p.spacing;
+  hp.density = p.density;
+  hp.alpha_cap = p.alpha_cap;
+  hp.energy = p.energy;
+  hp.tolerance = p.tolerance;
+  hp.max_iters = p.max_iters;
+  hp.population_tolerance = p.population_tolerance;
+  hp.seed = p.seed;
+  hp.settled_move = p.settled_move;
+  hp.coarse_to_fine = p.coarse_to_fine;
+  hp.coarse_start = p.coarse_start;
+  const pm::HpParticleResult r = pm::distribute_hp_particles(field, hp);
+  pm::Mesh m;
+  m.vertices = r.positions;
+  m.normals = r.normals;
+  std::vector<double> elem(r.element.begin(), r.element.end()), x1, x2, x3;
+  for (const pm::Vec3& xi : r.xi) {
+    x1.push_back(xi.x);
+    x2.push_back(xi.y);
+    x3.push_back(xi.z);
+  }
+  m.vertex_scalars["element"] = elem;
+  m.vertex_scalars["xi1"] = x1;
+  m.vertex_scalars["xi2"] = x2;
+  m.vertex_scalars["xi3"] = x3;
+  m.vertex_scalars["residual"] = r.residual;
+  m.vertex_scalars["energy"] = r.energy;
+  m.vertex_scalars["spacing"] = r.spacing;
+  {
+    pm::ScopedStage stage("write");
+    pm::write_atomically(output, [&](const std::string& tmp) { pm::write_ply(m, tmp, true, pm::WorldFrame::lps, true); });
+  }
+  double worst = 0;
+  for (double v : r.residual) worst = std::max(worst, v);
+  auto& st = pm::stats();
+  st["counts"] = {{"particles", r.positions.size()}, {"iterations", r.iterations}, {"seeds", r.seeds},
+                  {"thinned", r.thinned}, {"dropped_init", r.dropped_init}, {"splits", r.splits},
+                  {"deletions", r.deletions}, {"field_evaluations", r.field_evaluations},
+                  {"map_evaluations", r.map_evaluations}, {"seed_evaluations", r.seed_evaluations}};
+  st["engine"] = pm::engine_stats_json(r.engine);
+  st["converged"] = r.converged;
+  st["max_residual"] = worst;
+  st["energy_final"] = r.energy_final;
+  st["energy_ideal"] = r.energy_ideal;
+  st["mean_neighbours"] = r.mean_neighbours;
+  st["outputs"] = {output};
+  const std::string stuck = pm::engine_failure_summary(r.engine);
+  if (!stuck.empty()) pm::warn(stuck);
+  if (!r.converged)
+    pm::warn("not converged after " + std::to_string(r.iterations) + " iterations (--max-iters " +
+             std::to_string(p.max_iters) + "); the result was written anyway");
+  pm::info(std::to_string(r.positions.size()) + " particles on " + field.describe() + ", max |u - iso| " +
+           num(worst) + ", " + std::to_string(r.field_evaluations) + " field evaluations");
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -84,13 +173,19 @@ int main(int argc, char** argv) {
                 "surface is curved (--density) or following a sizing field (--sizing). Output: a PLY point set "
                 "with x y z, nx ny nz (outward normals) and vertex scalars energy, spacing (local spacing, world "
                 "units) and curvature (curvedness sqrt(k1^2 + k2^2), 1/world units).",
-                "particles -i brain.nrrd --iso 0.5 --spacing 2 --density 5 -o brain.ply --stats -");
-  std::string implicit, input, sizing_path, seeds_path, output, kernel = "bspline", energy = "cotangent";
+                "particles -i brain.nrrd --iso 0.5 --spacing 2 --density 5 -o brain.ply --stats -\n"
+                "  particles -i chan3D.xml --field chan3D.fld:u --iso 0.5 --spacing 0.05 -o u.ply");
+  std::string implicit, input, hp_field, sizing_path, seeds_path, output, kernel = "bspline", energy = "cotangent";
   pm::ParticleParams p;
   bool coarse = false;
   tool.app.add_option("--implicit", implicit, "Analytic surface: " + pm::implicit_help());
   tool.app.add_option("-i,--input", input, "Volume to sample (.nrrd .nhdr .vdb .mha .nii .inr), geometry from its "
                                            "header");
+  tool.app.add_option("--field", hp_field,
+                      "Chapter 4: a Nektar++ field FILE.fld:VARIABLE on the mesh -i MESH.xml (straight-sided tets "
+                      "and hexes); particles live in each element's reference space, are projected by Newton on the "
+                      "element polynomial (|u - iso| <= 1e-12) and cross element faces. Output: .ply with double x y z "
+                      "(mesh units), nx ny nz, element (Nektar++ id), xi1 xi2 xi3, residual |u - iso|, energy, spacing");
   tool.app.add_option("--iso", p.iso, "Isovalue (volume: strictly between its min and max voxel)")
       ->capture_default_str();
   auto* spacing = tool.app.add_option("--spacing", p.spacing,
@@ -136,7 +231,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   auto* ctf = tool.app.add_flag("--coarse-to-fine,!--no-coarse-to-fine", coarse,
                                 "Converge with spacings x 2^k, split each particle into 4, halve, repeat down to "
-                                "the requested spacing (default: on for volumes, off for --implicit)");
+                                "the requested spacing (default: on for volumes, off for --implicit and --field)");
   tool.app.add_option("--coarse-start", p.coarse_start, "Coarsest spacing, world units (0 = 4 voxel widths / "
                                                         "field resolutions)")
       ->capture_default_str();
@@ -156,6 +251,18 @@ int main(int argc, char** argv) {
   pm::add_frame_option(tool.app, frame);
   return tool.run(argc, argv, [&] {
     pm::check_output_path(output, pm::OutputKind::points, "--output");
+    p.seed = tool.flags.seed;
+    p.energy = energy == "radial" ? pm::ParticleEnergy::radial : pm::ParticleEnergy::cotangent;
+    if (!hp_field.empty()) {
+      if (input.empty() || !implicit.empty()) throw pm::UsageError("--field needs -i MESH.xml (and no --implicit)");
+      if (!spacing->count()) throw pm::UsageError("--spacing S (world units of the mesh) is required");
+      if (!sizing_path.empty() || !seeds_path.empty() || p.count || lattice->count())
+        throw pm::UsageError("--sizing, --init, --count and --lattice-init do not apply with --field");
+      p.coarse_to_fine = ctf->count() ? coarse : false;
+      pm::stats()["inputs"] = {{"mesh", input}, {"field", hp_field}};
+      pm::stats()["parameters"] = {{"iso", p.iso}, {"spacing", p.spacing}, {"density", p.density}};
+      return run_hp(input, hp_field, p, output, frame);
+    }
     if (implicit.empty() == input.empty()) throw pm::UsageError("give exactly one of --implicit SPEC or -i VOLUME");
     if (sizing_path.empty() && !spacing->count()) throw pm::UsageError("--spacing S (world units) is required");
     if (!sizing_path.empty() && spacing->count()) throw pm::UsageError("give --spacing or --sizing, not both");

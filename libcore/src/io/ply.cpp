@@ -455,7 +455,7 @@ Mesh read_ply(const std::string& path, WorldFrame* frame) {
   return m;
 }
 
-void write_ply(const Mesh& m, const std::string& path, bool binary_wanted, WorldFrame frame) {
+void write_ply(const Mesh& m, const std::string& path, bool binary_wanted, WorldFrame frame, bool doubles) {
   const std::string where = "write_ply: " + quote(path);
   m.validate(where);
   check_ply_names(m, where);
@@ -467,9 +467,10 @@ void write_ply(const Mesh& m, const std::string& path, bool binary_wanted, World
   out += "comment written by particlemesh " PM_VERSION "\n";
   out += std::string("comment frame ") + frame_name(frame) + " SPACE=" + frame_name(frame) + "\n";
   out += "element vertex " + std::to_string(m.vertices.size()) + "\n";
-  out += "property float x\nproperty float y\nproperty float z\n";
-  if (m.has_normals()) out += "property float nx\nproperty float ny\nproperty float nz\n";
-  for (const auto& kv : m.vertex_scalars) out += "property float " + kv.first + "\n";
+  const std::string vt = doubles ? "property double " : "property float ";
+  out += vt + "x\n" + vt + "y\n" + vt + "z\n";
+  if (m.has_normals()) out += vt + "nx\n" + vt + "ny\n" + vt + "nz\n";
+  for (const auto& kv : m.vertex_scalars) out += vt + kv.first + "\n";
   if (!m.faces.empty()) {
     out += "element face " + std::to_string(m.faces.size()) + "\n";
     out += "property list uchar int vertex_indices\n";
@@ -479,13 +480,23 @@ void write_ply(const Mesh& m, const std::string& path, bool binary_wanted, World
 
   const bool swap = !host_is_little_endian();
   auto put_bytes = [&](const void* p, std::size_t n) {
-    unsigned char b[4];
+    unsigned char b[8];
     std::memcpy(b, p, n);
     if (swap) std::reverse(b, b + n);
     out.append(reinterpret_cast<const char*>(b), n);
   };
   char buf[64];
   auto put_float = [&](double v, bool last) {
+    if (doubles) {
+      if (binary) {
+        put_bytes(&v, 8);
+      } else {
+        const int n = std::snprintf(buf, sizeof buf, "%.17g", v);
+        out.append(buf, std::size_t(n));
+        out += last ? '\n' : ' ';
+      }
+      return;
+    }
     const float f = float(v);
     if (binary) {
       put_bytes(&f, 4);
