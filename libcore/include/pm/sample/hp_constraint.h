@@ -33,6 +33,7 @@
 #include <vector>
 
 #include "pm/field/hp_field.h"
+#include "pm/field/reference_field.h"
 #include "pm/sample/engine.h"
 
 namespace pm {
@@ -51,7 +52,7 @@ class HpConstraint : public SurfaceRules {
   /// eps: |u - c| at which Newton stops (field units; default 1e-12 suits
   /// fields of order one: the polynomial then sits at round-off).
   /// curvature: evaluate the world Hessian for curvedness().
-  HpConstraint(const HpField& field, double iso, bool curvature, double eps = 1e-12);
+  HpConstraint(const ReferenceField& field, double iso, bool curvature, double eps = 1e-12);
 
   /// Project reference point (elem, xi) onto u = c: up to `steps` Newton steps.
   bool place_reference(int elem, const Vec3& xi, int steps, Point& out, Probe& pr) const;
@@ -64,7 +65,7 @@ class HpConstraint : public SurfaceRules {
   bool move(const Point& from, const Vec3& step, int steps, double max_step, Point& out, Probe& pr) const;
   double curvedness(const Point& p) const { return p.s.curvedness; }
 
-  const HpField& field() const { return f_; }
+  const ReferenceField& field() const { return f_; }
   double iso() const { return iso_; }
 
  private:
@@ -75,7 +76,7 @@ class HpConstraint : public SurfaceRules {
   bool project(int elem, Vec3 xi, int steps, Point& out, Probe& pr) const;
   bool accept(int elem, const Vec3& xi, const HpSample& s, Point& out, Probe& pr) const;
 
-  const HpField& f_;
+  const ReferenceField& f_;
   double iso_;
   bool curvature_;
   double eps_;
@@ -136,6 +137,6 @@ struct HpParticleResult {
 ///   seed_points is 1 or negative, seed_thinning outside [0, 2);
 ///   InputError when iso is not strictly between the field's lowest and
 ///   highest lattice value (no isosurface), or no seed reaches u = iso.
-HpParticleResult distribute_hp_particles(const HpField& field, const HpParticleParams& params);
+HpParticleResult distribute_hp_particles(const ReferenceField& field, const HpParticleParams& params);
 
 }  // namespace pm
