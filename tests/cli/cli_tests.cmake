@@ -76,6 +76,7 @@ pm_cli_test(particles.scenario_unknown "particles: usage error: --scenario: bogu
 pm_cli_test(particles.scenario_with_input "particles: usage error: --scenario takes no -i, --implicit or --field" ${PT} --scenario teardrop -i x.xml --spacing 0.1 -o /tmp/pm_p.ply)
 pm_cli_test(particles.scenario_not_ply "particles: usage error: with --scenario the output must be .ply" ${PT} --scenario hex8 --spacing 0.1 -o /tmp/pm_p.vtp)
 pm_cli_test(particles.scenario_teardrop "\"converged\": true.*\"max_residual\": [0-9.]+e-1[2-9]" ${PT} --scenario teardrop --spacing 0.3 -o /tmp/pm_td.ply --stats - -q)
+pm_cli_script(particles.scenario_threads scenario_particles_test.sh)
 # == render
 set(RD $<TARGET_FILE:render>)
 pm_cli_test(render.missing_file "render: error: .*nope.ply.*no such file" ${RD} ${D}/nope.ply -o /tmp/pm_r.png)
