@@ -203,7 +203,8 @@ int main(int argc, char** argv) {
                 "with x y z, nx ny nz (outward normals) and vertex scalars energy, spacing (local spacing, world "
                 "units) and curvature (curvedness sqrt(k1^2 + k2^2), 1/world units).",
                 "particles -i brain.nrrd --iso 0.5 --spacing 2 --density 5 -o brain.ply --stats -\n"
-                "  particles -i chan3D.xml --field chan3D.fld:u --iso 0.5 --spacing 0.05 -o u.ply");
+                "  particles -i chan3D.xml --field chan3D.fld:u --iso 0.5 --spacing 0.05 -o u.ply\n"
+                "  particles --scenario teardrop --spacing 0.0385 -o teardrop.ply");
   std::string implicit, input, hp_field, sizing_path, seeds_path, output, kernel = "bspline", energy = "cotangent";
   pm::ParticleParams p;
   bool coarse = false;
