@@ -20,6 +20,7 @@
 #include "pm/cli/frame_option.h"
 #include "pm/io/output_path.h"
 #include "pm/field/hp_field.h"
+#include "pm/field/reference_scenarios.h"
 #include "pm/io/nektar.h"
 #include "pm/io/ply.h"
 #include "pm/sample/hp_constraint.h"
@@ -82,6 +83,8 @@ pm::Mesh to_mesh(const pm::ParticleResult& r) {
 
 // Chapter 4: particles in the reference spaces of a Nektar++ field
 // (mesh.xml + field.fld:VARIABLE), written as a double-precision PLY.
+void run_reference(const pm::ReferenceField& field, const pm::ParticleParams& p, const std::string& output);
+
 void run_hp(const std::string& mesh_path, const std::string& field_arg, const pm::ParticleParams& p,
             const std::string& output, pm::WorldFrame frame) {
   const std::size_t colon = field_arg.rfind(':');
@@ -107,6 +110,12 @@ void run_hp(const std::string& mesh_path, const std::string& field_arg, const pm
                          "; expected one of: " + names);
   const pm::HpField field(mesh, fld, var);
   read.reset();
+  run_reference(field, p, output);
+}
+
+// Particles in reference space on any ReferenceField (a Nektar++ field or a
+// built-in Chapter 4 scenario), written as a double-precision PLY.
+void run_reference(const pm::ReferenceField& field, const pm::ParticleParams& p, const std::string& output) {
   pm::HpParticleParams hp;
   hp.iso = p.iso;
   hp.spacing = p.spacing;
@@ -164,6 +173,26 @@ void run_hp(const std::string& mesh_path, const std::string& field_arg, const pm
            num(worst) + ", " + std::to_string(r.field_evaluations) + " field evaluations");
 }
 
+// Chapter 4 scenarios built in code: the B-spline-mapped teardrop (F* =
+// |u - c|^2 in reference space, default iso 0.16: radius 0.4) and hex8
+// (u = x^8 + y^8 + z^8 in the hexahedron [-1,1]^3, default iso 0.5).
+void run_scenario(const std::string& name, pm::ParticleParams p, bool iso_given, const std::string& output) {
+  if (pm::file_extension(output) != ".ply")
+    throw pm::UsageError("with --scenario the output must be .ply (positions are written as double), got " +
+                         pm::quote(output));
+  if (name == "teardrop") {
+    const pm::TeardropField field;
+    if (!iso_given) p.iso = field.iso();
+    pm::stats()["parameters"]["iso"] = p.iso;
+    return run_reference(field, p, output);
+  }
+  const pm::HexPowerScenario s = pm::hex_power_field(8, {-1, -1, -1}, {1, 1, 1});
+  const pm::HpField field(s.mesh, s.field, "u");
+  if (!iso_given) p.iso = 0.5;
+  pm::stats()["parameters"]["iso"] = p.iso;
+  run_reference(field, p, output);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -174,7 +203,8 @@ int main(int argc, char** argv) {
                 "with x y z, nx ny nz (outward normals) and vertex scalars energy, spacing (local spacing, world "
                 "units) and curvature (curvedness sqrt(k1^2 + k2^2), 1/world units).",
                 "particles -i brain.nrrd --iso 0.5 --spacing 2 --density 5 -o brain.ply --stats -\n"
-                "  particles -i chan3D.xml --field chan3D.fld:u --iso 0.5 --spacing 0.05 -o u.ply");
+                "  particles -i chan3D.xml --field chan3D.fld:u --iso 0.5 --spacing 0.05 -o u.ply\n"
+                "  particles --scenario teardrop --spacing 0.0385 -o teardrop.ply");
   std::string implicit, input, hp_field, sizing_path, seeds_path, output, kernel = "bspline", energy = "cotangent";
   pm::ParticleParams p;
   bool coarse = false;
@@ -186,7 +216,14 @@ int main(int argc, char** argv) {
                       "and hexes); particles live in each element's reference space, are projected by Newton on the "
                       "element polynomial (|u - iso| <= 1e-12) and cross element faces. Output: .ply with double x y z "
                       "(mesh units), nx ny nz, element (Nektar++ id), xi1 xi2 xi3, residual |u - iso|, energy, spacing");
-  tool.app.add_option("--iso", p.iso, "Isovalue (volume: strictly between its min and max voxel)")
+  std::string scenario;
+  tool.app.add_option("--scenario", scenario,
+                      "Chapter 4 scenario built in code (no -i): teardrop = sphere |u - c|^2 = iso (default 0.16) "
+                      "in the reference space of 8 quadratic B-spline elements mapped to a teardrop (world height "
+                      "2); hex8 = x^8 + y^8 + z^8 = iso (default 0.5) in one hexahedron [-1,1]^3. Output as with "
+                      "--field")
+      ->check(CLI::IsMember({"teardrop", "hex8"}));
+  auto* iso_opt = tool.app.add_option("--iso", p.iso, "Isovalue (volume: strictly between its min and max voxel)")
       ->capture_default_str();
   auto* spacing = tool.app.add_option("--spacing", p.spacing,
                                       "Spacing s between particles on flat parts, world units (from the volume "
@@ -253,6 +290,17 @@ int main(int argc, char** argv) {
     pm::check_output_path(output, pm::OutputKind::points, "--output");
     p.seed = tool.flags.seed;
     p.energy = energy == "radial" ? pm::ParticleEnergy::radial : pm::ParticleEnergy::cotangent;
+    if (!scenario.empty()) {
+      if (!input.empty() || !implicit.empty() || !hp_field.empty())
+        throw pm::UsageError("--scenario takes no -i, --implicit or --field");
+      if (!spacing->count()) throw pm::UsageError("--spacing S (world units) is required");
+      if (!sizing_path.empty() || !seeds_path.empty() || p.count || lattice->count())
+        throw pm::UsageError("--sizing, --init, --count and --lattice-init do not apply with --scenario");
+      p.coarse_to_fine = ctf->count() ? coarse : false;
+      pm::stats()["inputs"] = {{"scenario", scenario}};
+      pm::stats()["parameters"] = {{"iso", p.iso}, {"spacing", p.spacing}, {"density", p.density}};
+      return run_scenario(scenario, p, iso_opt->count() > 0, output);
+    }
     if (!hp_field.empty()) {
       if (input.empty() || !implicit.empty()) throw pm::UsageError("--field needs -i MESH.xml (and no --implicit)");
       if (!spacing->count()) throw pm::UsageError("--spacing S (world units of the mesh) is required");

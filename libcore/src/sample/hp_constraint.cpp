@@ -30,7 +30,7 @@ constexpr int kMaxLevels = 8;          // coarse-to-fine levels at most
 constexpr double kCoarseResolutions = 4;  // default coarsest spacing: 4 field resolutions
 }  // namespace
 
-HpConstraint::HpConstraint(const HpField& field, double iso, bool curvature, double eps)
+HpConstraint::HpConstraint(const ReferenceField& field, double iso, bool curvature, double eps)
     : f_(field), iso_(iso), curvature_(curvature), eps_(eps) {}
 
 bool HpConstraint::settle(int& elem, Vec3& xi, int* wall) const {
@@ -174,7 +174,7 @@ struct RefSeed {
 // Crossings of u = iso along the edges of an equispaced lattice of n points
 // per edge in every element's reference space (tetrahedra: i + j + k <= n - 1),
 // linear interpolation in xi. lo/hi: the lattice values' range.
-std::vector<RefSeed> reference_lattice_seeds(const HpField& f, double iso, const std::vector<int>& points, double& lo,
+std::vector<RefSeed> reference_lattice_seeds(const ReferenceField& f, double iso, const std::vector<int>& points, double& lo,
                                              double& hi) {
   const int ne = f.num_elements();
   std::vector<std::vector<RefSeed>> per(static_cast<std::size_t>(ne));
@@ -231,7 +231,7 @@ std::vector<RefSeed> reference_lattice_seeds(const HpField& f, double iso, const
   return all;
 }
 
-double element_diameter(const HpField& f, int e) {
+double element_diameter(const ReferenceField& f, int e) {
   const std::vector<Vec3> v = f.element_vertices(e);
   double d = 0;
   for (std::size_t a = 0; a < v.size(); ++a)
@@ -241,7 +241,7 @@ double element_diameter(const HpField& f, int e) {
 
 }  // namespace
 
-HpParticleResult distribute_hp_particles(const HpField& field, const HpParticleParams& p) {
+HpParticleResult distribute_hp_particles(const ReferenceField& field, const HpParticleParams& p) {
   const double diag = norm(field.domain().size());
   if (!(p.spacing > 0) || !std::isfinite(p.spacing))
     throw UsageError("spacing must be > 0 world units, got " + engine_fmt(p.spacing));

@@ -42,27 +42,9 @@
 #include "pm/base/vec.h"
 #include "pm/field/field.h"
 #include "pm/io/nektar.h"
+#include "pm/field/reference_field.h"
 
 namespace pm {
-
-/// A point in an element's reference space: element index (0..num_elements)
-/// and reference coordinates xi.
-struct RefPoint {
-  int elem = -1;  ///< -1: no element (outside the mesh)
-  Vec3 xi;
-};
-
-/// Everything a reference-space constraint needs at one point.
-struct HpSample {
-  Vec3 x;         ///< world position T(xi), world units
-  Mat3 J;         ///< dT/dxi: J[a][i] = d x_a / d xi_i
-  Mat3 K;         ///< J^-1
-  double f = 0;   ///< F*(xi)
-  Vec3 grad_ref;  ///< grad_xi F*
-  Mat3 hess_ref;  ///< Hessian of F* in xi
-  Vec3 grad;      ///< world gradient K^T grad_xi F*
-  Mat3 hess;      ///< world Hessian K^T (H* - sum_a grad_a d2T^a) K
-};
 
 struct HpFieldParams {
   /// Reference-space slack for "inside an element" in point location.
@@ -71,7 +53,7 @@ struct HpFieldParams {
   int newton_iterations = 40;
 };
 
-class HpField : public ScalarField {
+class HpField : public ScalarField, public ReferenceField {
  public:
   /// Field `variable` of `field` on `mesh`. Every mesh element needs
   /// coefficients. \throw InputError naming the files when an element of the
@@ -93,15 +75,15 @@ class HpField : public ScalarField {
   std::string describe() const override { return description_; }
 
   // --- elements
-  int num_elements() const { return static_cast<int>(elems_.size()); }
-  NektarShape shape(int elem) const { return elems_[elem].shape; }
-  int element_id(int elem) const { return elems_[elem].id; }  ///< Nektar++ element id
+  int num_elements() const override { return static_cast<int>(elems_.size()); }
+  NektarShape shape(int elem) const override { return elems_[elem].shape; }
+  int element_id(int elem) const override { return elems_[elem].id; }  ///< Nektar++ element id
   int num_faces(int elem) const { return elems_[elem].shape == NektarShape::Tetrahedron ? 4 : 6; }
-  std::array<int, 3> modes(int elem) const { return elems_[elem].modes; }
+  std::array<int, 3> modes(int elem) const override { return elems_[elem].modes; }
   /// Element index of Nektar++ element id, -1 when absent.
   int element_index(int id) const;
   /// World positions of the element's vertices in local order (4 or 8).
-  std::vector<Vec3> element_vertices(int elem) const;
+  std::vector<Vec3> element_vertices(int elem) const override;
   /// Neighbour element across local face `face`, -1 on the boundary;
   /// *nb_face gets the neighbour's local face.
   int neighbour(int elem, int face, int* nb_face = nullptr) const;
@@ -113,33 +95,33 @@ class HpField : public ScalarField {
   Mat3 jacobian(int elem, const Vec3& xi) const;
   /// d2T^a/dxi_i dxi_j for a = 0..2 (zero for tetrahedra).
   void map_hessians(int elem, const Vec3& xi, Mat3 d2T[3]) const;
-  double ref_value(int elem, const Vec3& xi) const;
+  double ref_value(int elem, const Vec3& xi) const override;
   double ref_evaluate(int elem, const Vec3& xi, Vec3& grad_ref, Mat3& hess_ref) const;
-  HpSample sample(int elem, const Vec3& xi) const;
+  HpSample sample(int elem, const Vec3& xi) const override;
 
   /// True when xi is inside the reference element, up to `tol`.
   bool contains(int elem, const Vec3& xi, double tol = 0) const;
   /// The local face whose plane xi is farthest beyond (by more than tol), -1 when inside.
-  int exit_face(int elem, const Vec3& xi, double tol = 0) const;
+  int exit_face(int elem, const Vec3& xi, double tol = 0) const override;
   /// Closest point of the reference element to xi (in xi; tetrahedra: the
   /// Euclidean projection onto the reference simplex).
-  Vec3 clamp_to_element(int elem, const Vec3& xi) const;
+  Vec3 clamp_to_element(int elem, const Vec3& xi) const override;
   /// Preimage of world x under element elem's map (exact for tetrahedra,
   /// Newton for hexahedra, also outside the element). False when Newton
   /// does not converge.
-  bool inverse_map(int elem, const Vec3& x, Vec3& xi) const;
+  bool inverse_map(int elem, const Vec3& x, Vec3& xi) const override;
   /// World point -> element + reference coordinates; elem = -1 when x is in
   /// no element (up to params.inside_tol). `hint`: an element to try first
   /// (a walk through faces starts there).
-  RefPoint locate(const Vec3& x, int hint = -1) const;
+  RefPoint locate(const Vec3& x, int hint = -1) const override;
   /// A point xi of elem that has left it through local face `face`: the
   /// same world point in the neighbour's reference space (elem = -1 on the
   /// boundary). Straight-sided elements: exact up to round-off.
-  RefPoint cross_face(int elem, int face, const Vec3& xi) const;
+  RefPoint cross_face(int elem, int face, const Vec3& xi) const override;
 
   // --- counters (thread-safe)
-  std::uint64_t field_evaluations() const { return nfield_.load(std::memory_order_relaxed); }
-  std::uint64_t map_evaluations() const { return nmap_.load(std::memory_order_relaxed); }
+  std::uint64_t field_evaluations() const override { return nfield_.load(std::memory_order_relaxed); }
+  std::uint64_t map_evaluations() const override { return nmap_.load(std::memory_order_relaxed); }
   void reset_counters() const {
     nfield_.store(0);
     nmap_.store(0);

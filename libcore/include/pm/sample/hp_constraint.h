@@ -2,7 +2,8 @@
 // Particles on an isosurface u = c of a high-order (spectral/hp) Nektar++
 // field, living in each element's reference space (SPEC §4, Meyer 2008
 // Chapter 4; issue #18). A particle's state is (element, xi); the value and
-// gradient come from the element's own polynomial (HpField::sample), the
+// gradient come from the element's own polynomial (ReferenceField::sample:
+// a Nektar++ HpField or the analytic TeardropField), the
 // world position and Jacobian J = dT/dxi from the element's geometry, the
 // world normal from J^-T grad_xi u.
 //
@@ -15,7 +16,8 @@
 // conformal, and walks particles out through the channel walls). Whenever
 // xi leaves the element's reference domain (after a move or a Newton step),
 // the point continues in the neighbour element through the face it left by
-// (HpField::cross_face, world-exact for straight-sided elements); a point
+// (ReferenceField::cross_face, world-exact for straight-sided elements and
+// for the C1 B-spline map of the teardrop); a point
 // that leaves through a boundary face is clamped onto that face (xi closest
 // in the reference element) and Newton goes on from there within that
 // face's plane (the minimum-norm correction tangent to the face, used when
@@ -33,6 +35,7 @@
 #include <vector>
 
 #include "pm/field/hp_field.h"
+#include "pm/field/reference_field.h"
 #include "pm/sample/engine.h"
 
 namespace pm {
@@ -40,7 +43,7 @@ namespace pm {
 class HpConstraint : public SurfaceRules {
  public:
   struct State {
-    std::int32_t element = -1;  ///< element index of the HpField (not the Nektar++ id)
+    std::int32_t element = -1;  ///< element index of the ReferenceField (not the Nektar++ id)
     Vec3 xi;                    ///< reference coordinates, Nektar++'s [-1, 1]^3 conventions
     Mat3 K;                     ///< J^-1 at xi (pulls world moves back)
     double residual = 0;        ///< u(xi) - c of our evaluator
@@ -51,7 +54,7 @@ class HpConstraint : public SurfaceRules {
   /// eps: |u - c| at which Newton stops (field units; default 1e-12 suits
   /// fields of order one: the polynomial then sits at round-off).
   /// curvature: evaluate the world Hessian for curvedness().
-  HpConstraint(const HpField& field, double iso, bool curvature, double eps = 1e-12);
+  HpConstraint(const ReferenceField& field, double iso, bool curvature, double eps = 1e-12);
 
   /// Project reference point (elem, xi) onto u = c: up to `steps` Newton steps.
   bool place_reference(int elem, const Vec3& xi, int steps, Point& out, Probe& pr) const;
@@ -64,7 +67,7 @@ class HpConstraint : public SurfaceRules {
   bool move(const Point& from, const Vec3& step, int steps, double max_step, Point& out, Probe& pr) const;
   double curvedness(const Point& p) const { return p.s.curvedness; }
 
-  const HpField& field() const { return f_; }
+  const ReferenceField& field() const { return f_; }
   double iso() const { return iso_; }
 
  private:
@@ -75,7 +78,7 @@ class HpConstraint : public SurfaceRules {
   bool project(int elem, Vec3 xi, int steps, Point& out, Probe& pr) const;
   bool accept(int elem, const Vec3& xi, const HpSample& s, Point& out, Probe& pr) const;
 
-  const HpField& f_;
+  const ReferenceField& f_;
   double iso_;
   bool curvature_;
   double eps_;
@@ -112,7 +115,7 @@ struct HpParticleParams {
 struct HpParticleResult {
   std::vector<Vec3> positions;   ///< #N world points T_e(xi), world units
   std::vector<Vec3> normals;     ///< #N unit world normals, towards increasing u
-  std::vector<int> element;      ///< #N Nektar++ element ids
+  std::vector<int> element;      ///< #N field.element_id() of each particle (Nektar++ element ids for HpField)
   std::vector<Vec3> xi;          ///< #N reference coordinates
   std::vector<double> residual;  ///< #N |u - c| of our evaluator at the particle
   std::vector<double> energy, spacing;  ///< #N particle energy, local spacing (world units)
@@ -121,7 +124,7 @@ struct HpParticleResult {
   bool converged = false;
   std::size_t seeds = 0, thinned = 0, dropped_init = 0, splits = 0, deletions = 0;
   /// Forward evaluations of the element polynomials F* and of the maps T
-  /// (HpField's counters over the run, seeds included).
+  /// (the field's counters over the run, seeds included).
   std::uint64_t field_evaluations = 0, map_evaluations = 0;
   std::uint64_t seed_evaluations = 0;  ///< of which the seeding lattice
   double energy_final = 0, energy_ideal = 0, mean_neighbours = 0;
@@ -136,6 +139,6 @@ struct HpParticleResult {
 ///   seed_points is 1 or negative, seed_thinning outside [0, 2);
 ///   InputError when iso is not strictly between the field's lowest and
 ///   highest lattice value (no isosurface), or no seed reaches u = iso.
-HpParticleResult distribute_hp_particles(const HpField& field, const HpParticleParams& params);
+HpParticleResult distribute_hp_particles(const ReferenceField& field, const HpParticleParams& params);
 
 }  // namespace pm
