@@ -321,21 +321,7 @@ HpParticleResult distribute_hp_particles(const ReferenceField& field, const HpPa
   eng.refresh_spacings();
   eng.set_anchors_from_particles();
   if (levels == 0) eng.guard_anchors();
-  if (p.seed_thinning > 0) {
-    auto& parts = eng.particles();
-    std::vector<Vec3> xs(parts.size());
-    std::vector<double> radius(parts.size());
-    for (std::size_t i = 0; i < parts.size(); ++i) {
-      xs[i] = parts[i].p.x;
-      radius[i] = p.seed_thinning * parts[i].spacing;
-    }
-    const std::vector<std::size_t> keep = thin_points(xs, radius, {});
-    res.thinned = parts.size() - keep.size();
-    std::vector<Engine::Particle> kept;
-    kept.reserve(keep.size());
-    for (std::size_t i : keep) kept.push_back(parts[i]);
-    parts.swap(kept);
-  }
+  if (p.seed_thinning > 0) res.thinned = eng.thin_particles(p.seed_thinning);
 
   for (int level = levels; level >= 0; --level) {
     if (level == 0 && levels > 0) {  // from here on every anchor keeps a particle near it

@@ -216,21 +216,7 @@ ParticleResult SurfaceRun::run(const std::vector<Vec3>& seeds) {
   e_.set_scale(std::ldexp(1.0, levels));
   e_.refresh_spacings();
   res.levels = levels + 1;
-  if (p_.seed_thinning > 0 && !seeds.empty()) {  // start near the target density
-    auto& parts = e_.particles();
-    std::vector<Vec3> xs(parts.size());
-    std::vector<double> radius(parts.size());
-    for (std::size_t i = 0; i < parts.size(); ++i) {
-      xs[i] = parts[i].p.x;
-      radius[i] = p_.seed_thinning * parts[i].spacing;
-    }
-    const std::vector<std::size_t> keep = thin_points(xs, radius, {});
-    res.thinned = parts.size() - keep.size();
-    std::vector<Engine::Particle> kept;
-    kept.reserve(keep.size());
-    for (std::size_t i : keep) kept.push_back(parts[i]);
-    parts.swap(kept);
-  }
+  if (p_.seed_thinning > 0 && !seeds.empty()) res.thinned = e_.thin_particles(p_.seed_thinning);
 
   bool conv = false;
   for (int level = levels; level >= 0; --level) {

@@ -362,6 +362,24 @@ class ParticleEngine {
   void refresh_spacings() {
     for (Particle& q : parts_) q.spacing = local_spacing(q.attr, q.type);
   }
+  /// Start near the target density: keep particles (in order) none of which
+  /// lies within `factor` × its spacing of an earlier kept one (thin_points).
+  /// Returns how many were dropped.
+  std::size_t thin_particles(double factor) {
+    std::vector<Vec3> xs(parts_.size());
+    std::vector<double> radius(parts_.size());
+    for (std::size_t i = 0; i < parts_.size(); ++i) {
+      xs[i] = parts_[i].p.x;
+      radius[i] = factor * parts_[i].spacing;
+    }
+    const std::vector<std::size_t> keep = thin_points(xs, radius, {});
+    std::vector<Particle> kept;
+    kept.reserve(keep.size());
+    for (std::size_t i : keep) kept.push_back(parts_[i]);
+    const std::size_t dropped = parts_.size() - kept.size();
+    parts_.swap(kept);
+    return dropped;
+  }
 
   // --- relaxation -------------------------------------------------------
   struct LevelResult {
