@@ -17,13 +17,10 @@
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
 #include "pm/sample/particles.h"
+#include "pm/cli/field_options.h"
 #include "pm/cli/frame_option.h"
+#include "pm/cli/reference_particles.h"
 #include "pm/io/output_path.h"
-#include "pm/field/hp_field.h"
-#include "pm/field/reference_scenarios.h"
-#include "pm/io/nektar.h"
-#include "pm/io/ply.h"
-#include "pm/sample/hp_constraint.h"
 
 namespace {
 
@@ -31,12 +28,6 @@ std::string num(double v) {
   char b[32];
   std::snprintf(b, sizeof b, "%g", v);
   return b;
-}
-
-pm::VolumeFieldParams kernel_params(const std::string& k) {
-  if (k == "catmull-rom") return {pm::KernelType::catmull_rom, pm::KernelType::catmull_rom};
-  if (k == "mix") return pm::VolumeFieldParams::chapter5_mix();
-  return {};
 }
 
 // The field to sample: an analytic implicit or a reconstructed volume whose
@@ -51,7 +42,7 @@ std::unique_ptr<pm::ScalarField> load_field(const std::string& implicit, const s
     throw pm::InputError("isovalue " + num(iso) + " is outside the value range [" + num(r.lo) + ", " + num(r.hi) +
                          "] of " + pm::quote(input) +
                          "; expected min < iso < max");
-  return std::make_unique<pm::VolumeField>(v, kernel_params(kernel), input);
+  return std::make_unique<pm::VolumeField>(v, pm::kernel_params(kernel), input);
 }
 
 void record_stats(const pm::ParticleResult& r) {
@@ -79,118 +70,6 @@ pm::Mesh to_mesh(const pm::ParticleResult& r) {
   m.vertex_scalars["spacing"] = r.spacing;
   m.vertex_scalars["curvature"] = r.curvature;
   return m;
-}
-
-// Chapter 4: particles in the reference spaces of a Nektar++ field
-// (mesh.xml + field.fld:VARIABLE), written as a double-precision PLY.
-void run_reference(const pm::ReferenceField& field, const pm::ParticleParams& p, const std::string& output);
-
-void run_hp(const std::string& mesh_path, const std::string& field_arg, const pm::ParticleParams& p,
-            const std::string& output, pm::WorldFrame frame) {
-  const std::size_t colon = field_arg.rfind(':');
-  if (colon == std::string::npos || colon == 0 || colon + 1 == field_arg.size())
-    throw pm::UsageError("--field expects FILE.fld:VARIABLE (e.g. chan3D.fld:u), got " + pm::quote(field_arg));
-  if (frame != pm::WorldFrame::lps)
-    throw pm::UsageError("--frame does not apply with --field: the mesh's coordinates are written as they are");
-  if (pm::file_extension(output) != ".ply")
-    throw pm::UsageError("with --field the output must be .ply (positions are written as double), got " +
-                         pm::quote(output));
-  const std::string fld_path = field_arg.substr(0, colon), var = field_arg.substr(colon + 1);
-  std::unique_ptr<pm::ScopedStage> read = std::make_unique<pm::ScopedStage>("read");
-  const pm::NektarMesh mesh = pm::read_nektar_mesh(mesh_path);
-  const pm::NektarField fld = pm::read_nektar_field(fld_path);
-  bool has = false;
-  std::string names;
-  for (const auto& n : fld.names) {
-    has = has || n == var;
-    names += (names.empty() ? "" : " ") + n;
-  }
-  if (!has)
-    throw pm::InputError("field " + pm::quote(fld_path) + " has no variable " + pm::quote(var) +
-                         "; expected one of: " + names);
-  const pm::HpField field(mesh, fld, var);
-  read.reset();
-  run_reference(field, p, output);
-}
-
-// Particles in reference space on any ReferenceField (a Nektar++ field or a
-// built-in Chapter 4 scenario), written as a double-precision PLY.
-void run_reference(const pm::ReferenceField& field, const pm::ParticleParams& p, const std::string& output) {
-  pm::HpParticleParams hp;
-  hp.iso = p.iso;
-  hp.spacing = p.spacing;
-  hp.density = p.density;
-  hp.alpha_cap = p.alpha_cap;
-  hp.energy = p.energy;
-  hp.tolerance = p.tolerance;
-  hp.max_iters = p.max_iters;
-  hp.population_tolerance = p.population_tolerance;
-  hp.seed = p.seed;
-  hp.settled_move = p.settled_move;
-  hp.coarse_to_fine = p.coarse_to_fine;
-  hp.coarse_start = p.coarse_start;
-  const pm::HpParticleResult r = pm::distribute_hp_particles(field, hp);
-  pm::Mesh m;
-  m.vertices = r.positions;
-  m.normals = r.normals;
-  std::vector<double> elem(r.element.begin(), r.element.end()), x1, x2, x3;
-  for (const pm::Vec3& xi : r.xi) {
-    x1.push_back(xi.x);
-    x2.push_back(xi.y);
-    x3.push_back(xi.z);
-  }
-  m.vertex_scalars["element"] = elem;
-  m.vertex_scalars["xi1"] = x1;
-  m.vertex_scalars["xi2"] = x2;
-  m.vertex_scalars["xi3"] = x3;
-  m.vertex_scalars["residual"] = r.residual;
-  m.vertex_scalars["energy"] = r.energy;
-  m.vertex_scalars["spacing"] = r.spacing;
-  {
-    pm::ScopedStage stage("write");
-    pm::write_atomically(output, [&](const std::string& tmp) { pm::write_ply(m, tmp, true, pm::WorldFrame::lps, true); });
-  }
-  double worst = 0;
-  for (double v : r.residual) worst = std::max(worst, v);
-  auto& st = pm::stats();
-  st["counts"] = {{"particles", r.positions.size()}, {"iterations", r.iterations}, {"seeds", r.seeds},
-                  {"thinned", r.thinned}, {"dropped_init", r.dropped_init}, {"splits", r.splits},
-                  {"deletions", r.deletions}, {"field_evaluations", r.field_evaluations},
-                  {"map_evaluations", r.map_evaluations}, {"seed_evaluations", r.seed_evaluations}};
-  st["engine"] = pm::engine_stats_json(r.engine);
-  st["converged"] = r.converged;
-  st["max_residual"] = worst;
-  st["energy_final"] = r.energy_final;
-  st["energy_ideal"] = r.energy_ideal;
-  st["mean_neighbours"] = r.mean_neighbours;
-  st["outputs"] = {output};
-  const std::string stuck = pm::engine_failure_summary(r.engine);
-  if (!stuck.empty()) pm::warn(stuck);
-  if (!r.converged)
-    pm::warn("not converged after " + std::to_string(r.iterations) + " iterations (--max-iters " +
-             std::to_string(p.max_iters) + "); the result was written anyway");
-  pm::info(std::to_string(r.positions.size()) + " particles on " + field.describe() + ", max |u - iso| " +
-           num(worst) + ", " + std::to_string(r.field_evaluations) + " field evaluations");
-}
-
-// Chapter 4 scenarios built in code: the B-spline-mapped teardrop (F* =
-// |u - c|^2 in reference space, default iso 0.16: radius 0.4) and hex8
-// (u = x^8 + y^8 + z^8 in the hexahedron [-1,1]^3, default iso 0.5).
-void run_scenario(const std::string& name, pm::ParticleParams p, bool iso_given, const std::string& output) {
-  if (pm::file_extension(output) != ".ply")
-    throw pm::UsageError("with --scenario the output must be .ply (positions are written as double), got " +
-                         pm::quote(output));
-  if (name == "teardrop") {
-    const pm::TeardropField field;
-    if (!iso_given) p.iso = field.iso();
-    pm::stats()["parameters"]["iso"] = p.iso;
-    return run_reference(field, p, output);
-  }
-  const pm::HexPowerScenario s = pm::hex_power_field(8, {-1, -1, -1}, {1, 1, 1});
-  const pm::HpField field(s.mesh, s.field, "u");
-  if (!iso_given) p.iso = 0.5;
-  pm::stats()["parameters"]["iso"] = p.iso;
-  run_reference(field, p, output);
 }
 
 }  // namespace
@@ -299,7 +178,7 @@ int main(int argc, char** argv) {
       p.coarse_to_fine = ctf->count() ? coarse : false;
       pm::stats()["inputs"] = {{"scenario", scenario}};
       pm::stats()["parameters"] = {{"iso", p.iso}, {"spacing", p.spacing}, {"density", p.density}};
-      return run_scenario(scenario, p, iso_opt->count() > 0, output);
+      return pm::run_scenario(scenario, p, iso_opt->count() > 0, output);
     }
     if (!hp_field.empty()) {
       if (input.empty() || !implicit.empty()) throw pm::UsageError("--field needs -i MESH.xml (and no --implicit)");
@@ -309,7 +188,7 @@ int main(int argc, char** argv) {
       p.coarse_to_fine = ctf->count() ? coarse : false;
       pm::stats()["inputs"] = {{"mesh", input}, {"field", hp_field}};
       pm::stats()["parameters"] = {{"iso", p.iso}, {"spacing", p.spacing}, {"density", p.density}};
-      return run_hp(input, hp_field, p, output, frame);
+      return pm::run_hp(input, hp_field, p, output, frame);
     }
     if (implicit.empty() == input.empty()) throw pm::UsageError("give exactly one of --implicit SPEC or -i VOLUME");
     if (sizing_path.empty() && !spacing->count()) throw pm::UsageError("--spacing S (world units) is required");
