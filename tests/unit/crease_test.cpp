@@ -8,6 +8,7 @@
 
 #include "pm/mesh/meshstats.h"
 #include "pm/mesh/meshstats_materials.h"
+#include "test_meshes.h"
 
 namespace pm {
 namespace {
@@ -18,38 +19,6 @@ Mesh cube(Vec3 shift = {}) {
   for (int k = 0; k < 8; ++k) m.vertices.push_back(Vec3{double(k & 1), double((k >> 1) & 1), double(k >> 2)} + shift);
   m.faces = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
              {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
-  return m;
-}
-
-// Icosahedron subdivided `levels` times, projected onto the sphere of radius r.
-Mesh icosphere(int levels, double r = 1) {
-  const double t = (1 + std::sqrt(5.0)) / 2;
-  Mesh m;
-  m.vertices = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
-                {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
-  m.faces = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
-             {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
-             {3, 8, 9},  {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
-  for (int l = 0; l < levels; ++l) {
-    std::map<std::pair<int, int>, int> mid;
-    auto midpoint = [&](int a, int b) {
-      const auto key = std::minmax(a, b);
-      auto it = mid.find(key);
-      if (it != mid.end()) return it->second;
-      m.vertices.push_back((m.vertices[a] + m.vertices[b]) * 0.5);
-      return mid[key] = int(m.vertices.size()) - 1;
-    };
-    std::vector<std::array<int, 3>> faces;
-    for (const auto& f : m.faces) {
-      const int ab = midpoint(f[0], f[1]), bc = midpoint(f[1], f[2]), ca = midpoint(f[2], f[0]);
-      faces.push_back({f[0], ab, ca});
-      faces.push_back({f[1], bc, ab});
-      faces.push_back({f[2], ca, bc});
-      faces.push_back({ab, bc, ca});
-    }
-    m.faces = std::move(faces);
-  }
-  for (Vec3& v : m.vertices) v = normalized(v) * r;
   return m;
 }
 
@@ -88,13 +57,13 @@ TEST(Crease, OrientationDoesNotMatter) {
 TEST(Crease, FineSphereHasNone) {
   // Level 4: 5120 faces, 7680 edges; neighbouring normals differ by about the edge's
   // angle seen from the centre, ~3.6 degrees, far below 20.
-  const Mesh m = icosphere(4);
+  const Mesh m = testing::icosphere(4);
   const MeshQuality q = mesh_quality(m);
   EXPECT_EQ(q.interior_edges, 7680u);
   EXPECT_EQ(q.creased_edges_20, 0u);
   EXPECT_DOUBLE_EQ(q.crease_share_20, 0.0);
   // The bare icosahedron bends 41.8 degrees at each of its 30 edges.
-  EXPECT_EQ(count_creases(icosphere(0)).creased, 30u);
+  EXPECT_EQ(count_creases(testing::icosphere(0)).creased, 30u);
 }
 
 TEST(Crease, ThresholdIsTwentyDegrees) {
@@ -111,7 +80,7 @@ TEST(Crease, InterfaceMeshPerPairAndPooled) {
   // Pair (0,1): a cube (12 creases of 18 interior edges); pair (1,2): a fine sphere
   // far away (none of 7680). Pooled: 12 / 7698.
   Mesh m = cube({5, 0, 0});
-  const Mesh s = icosphere(4);
+  const Mesh s = testing::icosphere(4);
   const int off = int(m.vertices.size());
   m.vertices.insert(m.vertices.end(), s.vertices.begin(), s.vertices.end());
   for (auto f : s.faces) m.faces.push_back({f[0] + off, f[1] + off, f[2] + off});

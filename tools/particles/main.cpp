@@ -20,6 +20,7 @@
 #include "pm/cli/field_options.h"
 #include "pm/cli/frame_option.h"
 #include "pm/cli/reference_particles.h"
+#include "pm/cli/volume_particles.h"
 #include "pm/io/output_path.h"
 
 namespace {
@@ -83,7 +84,8 @@ int main(int argc, char** argv) {
                 "units) and curvature (curvedness sqrt(k1^2 + k2^2), 1/world units).",
                 "particles -i brain.nrrd --iso 0.5 --spacing 2 --density 5 -o brain.ply --stats -\n"
                 "  particles -i chan3D.xml --field chan3D.fld:u --iso 0.5 --spacing 0.05 -o u.ply\n"
-                "  particles --scenario teardrop --spacing 0.0385 -o teardrop.ply");
+                "  particles --scenario teardrop --spacing 0.0385 -o teardrop.ply\n"
+                "  particles --volume -i sdf.nrrd --iso 0 --fixed surface.ply --sizing h_volume.nrrd -o interior.ply");
   std::string implicit, input, hp_field, sizing_path, seeds_path, output, kernel = "bspline", energy = "cotangent";
   pm::ParticleParams p;
   bool coarse = false;
@@ -132,7 +134,7 @@ int main(int argc, char** argv) {
   tool.app.add_option("--energy", energy, "Pair energy: cotangent or radial")
       ->check(CLI::IsMember({"cotangent", "radial"}))
       ->capture_default_str();
-  tool.app.add_option("--tolerance", p.tolerance, "Converged when the system energy drops by less than this "
+  auto* tol_opt = tool.app.add_option("--tolerance", p.tolerance, "Converged when the system energy drops by less than this "
                                                   "fraction in one iteration")
       ->capture_default_str();
   tool.app.add_option("--population-tolerance", p.population_tolerance,
@@ -142,7 +144,7 @@ int main(int argc, char** argv) {
                     "Population control: split/delete particles towards the ideal energy (--no-population keeps "
                     "the initial particles, e.g. --init-count N with --no-lattice-init)")
       ->capture_default_str();
-  tool.app.add_option("--max-iters", p.max_iters, "Iteration limit per coarse-to-fine level (not converging is a "
+  auto* iters_opt = tool.app.add_option("--max-iters", p.max_iters, "Iteration limit per coarse-to-fine level (not converging is a "
                                                   "warning)")
       ->capture_default_str();
   auto* ctf = tool.app.add_flag("--coarse-to-fine,!--no-coarse-to-fine", coarse,
@@ -161,6 +163,19 @@ int main(int argc, char** argv) {
                       "spacing per iteration, re-checking it every 8 iterations (0 = off)")
       ->check(CLI::Range(0.0, 0.99))
       ->capture_default_str();
+  bool volume = false;
+  pm::VolumeRun vr;
+  pm::MaterialOptions mo;
+  tool.app.add_flag("--volume", volume, "Chapter 7 volume packing: free particles inside F < iso (or inside every "
+                                         "material of --materials), 12 ideal neighbours, repelled by the fixed "
+                                         "vertices of --fixed; spacing from --sizing (e.g. gradlimit --inward) or "
+                                         "--spacing. Output: x y z, spacing, label");
+  tool.app.add_option("--fixed", vr.fixed, "With --volume: the final surface or interface mesh (.ply from tetlabel); "
+                                           "its vertices stay fixed and bound the packing");
+  pm::add_material_options(tool.app, mo, false, "--material-kernel");
+  tool.app.add_option("--outside", vr.outside, "With --volume --materials: the label not packed (auto = the "
+                                               "material touching the volume's border)")
+      ->capture_default_str();
   tool.app.add_option("-o,--output", output, "Output point set (.ply .vtp .vtk), world units")->required();
 
   pm::WorldFrame frame = pm::WorldFrame::lps;
@@ -169,6 +184,31 @@ int main(int argc, char** argv) {
     pm::check_output_path(output, pm::OutputKind::points, "--output");
     p.seed = tool.flags.seed;
     p.energy = energy == "radial" ? pm::ParticleEnergy::radial : pm::ParticleEnergy::cotangent;
+    if (volume) {
+      if (!scenario.empty() || !hp_field.empty() || !seeds_path.empty() || p.count)
+        throw pm::UsageError("--scenario, --field, --init and --count do not apply with --volume");
+      if (sizing_path.empty() == !spacing->count()) throw pm::UsageError("--volume needs --sizing H or --spacing S");
+      std::unique_ptr<pm::ScalarField> field;
+      if (!implicit.empty() || !input.empty()) {
+        if (!implicit.empty() && !input.empty()) throw pm::UsageError("give one of --implicit SPEC or -i VOLUME");
+        field = load_field(implicit, input, kernel, p.iso);
+      }
+      vr.field = field.get();
+      vr.iso = p.iso;
+      vr.materials = mo.spec.empty() ? nullptr : &mo;
+      vr.sizing = sizing_path;
+      vr.params.spacing = p.spacing;
+      vr.params.energy = p.energy;
+      vr.params.seed = p.seed;
+      vr.params.progress = !tool.flags.quiet;
+      if (tol_opt->count()) vr.params.tolerance = p.tolerance;
+      if (iters_opt->count()) vr.params.max_iters = p.max_iters;
+      vr.params.population_control = p.population_control;
+      vr.output = output;
+      vr.frame = frame;
+      return pm::run_volume(vr);
+    }
+    if (!mo.spec.empty() || !vr.fixed.empty()) throw pm::UsageError("--materials and --fixed need --volume");
     if (!scenario.empty()) {
       if (!input.empty() || !implicit.empty() || !hp_field.empty())
         throw pm::UsageError("--scenario takes no -i, --implicit or --field");

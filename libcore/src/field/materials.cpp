@@ -132,6 +132,60 @@ double MaterialSet::resolution() const {
   return r;
 }
 
+namespace {
+
+class MaterialRegionField final : public ScalarField {
+ public:
+  MaterialRegionField(const MaterialSet& set, std::size_t i) : set_(set), i_(i), domain_(set.domain()) {}
+  double value(const Vec3& x) const override {
+    double best = std::numeric_limits<double>::infinity();
+    for (std::size_t j = 0; j < set_.size(); ++j)
+      if (j != i_) best = std::min(best, set_.fields[j]->value(x));
+    return set_.fields[i_]->value(x) - best;
+  }
+  double value_gradient(const Vec3& x, Vec3& grad) const override {
+    double best = std::numeric_limits<double>::infinity();
+    Vec3 gbest, g;
+    for (std::size_t j = 0; j < set_.size(); ++j) {
+      if (j == i_) continue;
+      const double d = set_.fields[j]->value_gradient(x, g);
+      if (d < best) best = d, gbest = g;
+    }
+    const double di = set_.fields[i_]->value_gradient(x, g);
+    grad = g - gbest;
+    return di - best;
+  }
+  double evaluate(const Vec3& x, Vec3& grad, Mat3& hess) const override {
+    double best = std::numeric_limits<double>::infinity();
+    Vec3 gbest, g;
+    Mat3 hbest, h;
+    for (std::size_t j = 0; j < set_.size(); ++j) {
+      if (j == i_) continue;
+      const double d = set_.fields[j]->evaluate(x, g, h);
+      if (d < best) best = d, gbest = g, hbest = h;
+    }
+    const double di = set_.fields[i_]->evaluate(x, g, h);
+    grad = g - gbest;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) hess.m[r][c] = h.m[r][c] - hbest.m[r][c];
+    return di - best;
+  }
+  Box domain() const override { return domain_; }
+  double resolution() const override { return set_.resolution(); }
+  std::string describe() const override { return "region of material " + std::to_string(set_.labels[i_]); }
+
+ private:
+  MaterialSet set_;  // copies the shared pointers only
+  std::size_t i_;
+  Box domain_;
+};
+
+}  // namespace
+
+std::shared_ptr<const ScalarField> material_region_field(const MaterialSet& set, std::size_t i) {
+  return std::make_shared<MaterialRegionField>(set, i);
+}
+
 MaterialSet materials_from_labels(const Volume& lv, Kernel kernel, const std::string& what) {
   // Distinct labels (checking integrality on the way).
   std::map<long long, std::size_t> counts;

@@ -270,4 +270,47 @@ GradLimitResult gradient_limit(const Volume& in, const GradLimitParams& p) {
   return res;
 }
 
+GradLimitResult interior_sizing(const Volume& h, const std::vector<Vec3>& boundary, double band, double delta,
+                                double max_size) {
+  if (!(band > 0)) throw UsageError("interior sizing: band " + std::to_string(band) + " must be > 0 (world units)");
+  if (!(delta > 0)) throw UsageError("interior sizing: delta " + std::to_string(delta) + " must be > 0");
+  if (!(max_size >= 0))
+    throw UsageError("interior sizing: max size " + std::to_string(max_size) + " must be > 0 (world units; 0 = no cap)");
+  const Dims& d = h.dims();
+  const Geometry& g = h.geometry();
+  // Voxel radius of the band (directions may be oblique: bound it by the
+  // smallest spacing).
+  const double smin = std::min({g.spacing(0), g.spacing(1), g.spacing(2)});
+  const long reach = long(std::ceil(band / smin)) + 1;
+  std::vector<char> keep(h.count(), 0);
+  for (const Vec3& x : boundary) {
+    if (!is_finite(x)) continue;
+    const Vec3 c = g.world_to_index(x);
+    const long ci = long(std::lround(c.x)), cj = long(std::lround(c.y)), ck = long(std::lround(c.z));
+    for (long k = std::max(0L, ck - reach); k <= std::min(long(d.nz) - 1, ck + reach); ++k)
+      for (long j = std::max(0L, cj - reach); j <= std::min(long(d.ny) - 1, cj + reach); ++j)
+        for (long i = std::max(0L, ci - reach); i <= std::min(long(d.nx) - 1, ci + reach); ++i)
+          if (norm2(g.index_to_world(Vec3{double(i), double(j), double(k)}) - x) <= band * band)
+            keep[h.index(std::size_t(i), std::size_t(j), std::size_t(k))] = 1;
+  }
+  Volume masked(VoxelType::f32, d, g);
+  std::size_t kept = 0;
+  for (std::size_t v = 0; v < h.count(); ++v) {
+    const double hv = h.get(v);
+    const bool k = keep[v] && std::isfinite(hv) && hv > 0;
+    masked.set(v, k ? hv : 0.0);
+    kept += k;
+  }
+  if (kept == 0)
+    throw InputError("interior sizing: no boundary point lies within " + std::to_string(band) +
+                     " world units of a voxel with h > 0; expected the surface inside the sizing field's box");
+  GradLimitParams p;
+  p.delta = delta;
+  GradLimitResult r = gradient_limit(masked, p);
+  if (max_size > 0)
+    for (std::size_t v = 0; v < r.h.count(); ++v)
+      if (r.h.get(v) > max_size) r.h.set(v, max_size);
+  return r;
+}
+
 }  // namespace pm

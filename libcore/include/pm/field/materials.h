@@ -39,6 +39,12 @@ struct MaterialSet {
   double resolution() const;
 };
 
+/// The region of material i as a field negative inside it:
+/// g_i(x) = d_i(x) - min_{j != i} d_j(x) (the best other indicator minus
+/// f_i), zero on the interfaces of i. Its gradient is the difference of the
+/// two fields' gradients. Shares the set's fields. \pre i < set.size() >= 2.
+std::shared_ptr<const ScalarField> material_region_field(const MaterialSet& set, std::size_t i);
+
 /// Largest number of materials load_materials accepts (one float volume each).
 constexpr std::size_t kMaxMaterials = 256;
 

@@ -11,6 +11,7 @@
 // finite and > 0 everywhere and can size interior volume packing later
 // (Chapter 7). Known voxels never increase: h <= h0 wherever h0 was known.
 #include <cstddef>
+#include <vector>
 
 #include "pm/base/volume.h"
 
@@ -62,5 +63,16 @@ struct GradLimitResult {
 /// (unless nonfinite_unknown), or no known voxel at all; InputError when
 /// upwind does not converge within max_iterations.
 GradLimitResult gradient_limit(const Volume& h0, const GradLimitParams& p = {});
+
+/// Sizing inside a volume for volume packing (Chapter 7, issue #19): the
+/// surface pipeline's h is kept on the voxels within `band` (world units) of
+/// a boundary point (the final surface's vertices) and is unknown
+/// everywhere else; gradient limiting with `delta` then grows it away from
+/// the surface, h(x) = min_y (h(y) + delta |x - y|) over the kept voxels y,
+/// and `max_size` (world units, 0 = none) caps it.
+/// \throw UsageError for band <= 0, delta <= 0 or max_size < 0; InputError
+/// when no boundary point lies within band of a voxel of h.
+GradLimitResult interior_sizing(const Volume& h, const std::vector<Vec3>& boundary, double band, double delta,
+                                double max_size);
 
 }  // namespace pm

@@ -1,0 +1,222 @@
+#include "pm/sample/volume_packing.h"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include "pm/base/error.h"
+#include "pm/base/log.h"
+#include "pm/sample/volume_constraint.h"
+
+namespace pm {
+namespace {
+
+constexpr int kMaxOctreeDepth = 12;     // cubes down to 1/4096 of the box
+constexpr double kSplitWhenLarger = 1.0; // split a cube larger than h(centre) × this
+
+struct Seeder {
+  const ScalarField& field;
+  double iso;
+  const VolumePackParams& p;
+  std::vector<Vec3>& out;
+  std::vector<double>& h_out;
+
+  bool size_at(const Vec3& x, double& h) const {
+    if (!p.sizing) {
+      h = p.spacing;
+      return true;
+    }
+    return p.sizing->sample(x, h);
+  }
+  // One point per cube of edge ≈ h(centre) where F < iso. A cube is split
+  // while it is larger than h at its centre or, near the region's boundary,
+  // while its centre is outside but the cube may still reach inside
+  // (|F| / |∇F| below the cube's half diagonal).
+  void visit(const Vec3& lo, double edge, int depth) {
+    const Vec3 c = lo + Vec3{edge, edge, edge} * 0.5;
+    double h = 0;
+    const bool known = size_at(c, h) && h > 0;
+    Vec3 g;
+    const double f = field.value_gradient(c, g);
+    if (!std::isfinite(f)) return;
+    const double gn = norm(g);
+    const double half_diag = 0.8660254037844386 * edge;
+    if (f >= iso && (gn > 0 ? (f - iso) / gn : 0.0) > half_diag) return;  // whole cube outside
+    const double want = known ? h : edge;
+    if (depth < kMaxOctreeDepth && (edge > kSplitWhenLarger * want || (f >= iso && edge > 0.5 * want))) {
+      const double e2 = edge / 2;
+      for (int k = 0; k < 8; ++k)
+        visit(lo + Vec3{double(k & 1), double((k >> 1) & 1), double(k >> 2)} * e2, e2, depth + 1);
+      return;
+    }
+    if (f < iso && known && field.domain().contains(c)) {
+      out.push_back(c);
+      h_out.push_back(h);
+    }
+  }
+};
+
+void add_stats(EngineStats& a, const EngineStats& b) {
+  a.updates += b.updates;
+  a.trials += b.trials;
+  a.rejected += b.rejected;
+  a.settled_skips += b.settled_skips;
+  a.field_evaluations += b.field_evaluations;
+  a.list_builds += b.list_builds;
+  a.place_failures += b.place_failures;
+  a.trial_failures += b.trial_failures;
+  for (int k = 0; k < int(ProjectFailure::count_); ++k) a.failures_by_reason[k] += b.failures_by_reason[k];
+  a.stuck += b.stuck;
+  if (a.first_failure.empty()) a.first_failure = b.first_failure;
+  a.seconds_relax += b.seconds_relax;
+  a.seconds_population += b.seconds_population;
+}
+
+}  // namespace
+
+VolumePackResult pack_volume(const ScalarField& field, double iso, const std::vector<Vec3>& fixed,
+                             const VolumePackParams& p, int label) {
+  if (!p.sizing && !(p.spacing > 0))
+    throw UsageError("volume packing: spacing " + engine_fmt(p.spacing) + " must be > 0 (world units) without a sizing field");
+  if (!(p.seed_clearance > 0 && p.seed_clearance < 2))
+    throw UsageError("volume packing: seed clearance " + engine_fmt(p.seed_clearance) + " must lie in (0, 2)");
+  if (!(p.tolerance > 0)) throw UsageError("volume packing: tolerance must be > 0");
+  if (p.max_iters < 1) throw UsageError("volume packing: max iterations must be >= 1");
+
+  // The region's box: the boundary particles' box (they enclose it), else
+  // the field's domain; clipped to the sizing field's box.
+  Box box;
+  if (!fixed.empty()) {
+    for (const Vec3& x : fixed) box.extend(x);
+  } else {
+    box = field.domain();
+  }
+  if (p.sizing) {
+    const Box& sb = p.sizing->bounds();
+    box.lo = Vec3{std::max(box.lo.x, sb.lo.x), std::max(box.lo.y, sb.lo.y), std::max(box.lo.z, sb.lo.z)};
+    box.hi = Vec3{std::min(box.hi.x, sb.hi.x), std::min(box.hi.y, sb.hi.y), std::min(box.hi.z, sb.hi.z)};
+  }
+  const Vec3 ext = box.hi - box.lo;
+  const double edge = std::max({ext.x, ext.y, ext.z});
+  if (!(edge > 0)) throw InputError("volume packing: the region of material " + std::to_string(label) + " is empty");
+
+  std::vector<Vec3> seeds;
+  std::vector<double> seed_h;
+  Seeder sd{field, iso, p, seeds, seed_h};
+  sd.visit(box.lo, edge, 0);
+
+  // Seeds keep their clearance from the fixed boundary particles (radius 0:
+  // never dropped) and from each other.
+  std::vector<Vec3> all(fixed);
+  std::vector<double> radius(fixed.size(), 0.0);
+  for (std::size_t i = 0; i < seeds.size(); ++i) {
+    all.push_back(seeds[i]);
+    radius.push_back(p.seed_clearance * seed_h[i]);
+  }
+  const std::vector<std::size_t> keep = thin_points(all, radius, {});
+
+  VolumeConstraint vc(field, iso);
+  EngineParams ep;
+  ep.energy = p.energy;
+  ep.tolerance = p.tolerance;
+  ep.max_iters = p.max_iters;
+  ep.population_interval = p.population_interval;
+  ep.population_tolerance = p.population_tolerance;
+  ep.population_control = p.population_control;
+  ep.seed = p.seed;
+  ep.progress = p.progress;
+  ep.sizing_mode = true;
+  ep.sizing = p.sizing;
+  ep.spacing = p.sizing ? 0 : p.spacing;
+  ParticleEngine<VolumeConstraint> e(vc, ep);
+  e.set_scale(1);
+
+  std::size_t nfixed = 0;
+  for (const Vec3& x : fixed) {
+    VolumeConstraint::Point b;
+    b.x = x;
+    e.add(b, 0, true);
+    ++nfixed;
+  }
+  std::vector<ParticleEngine<VolumeConstraint>::Candidate> cands;
+  for (std::size_t k : keep) {
+    if (k < fixed.size()) continue;
+    ParticleEngine<VolumeConstraint>::Candidate c;
+    c.x = all[k];
+    cands.push_back(c);
+  }
+  std::vector<VolumeConstraint::Point> placed;
+  std::vector<char> ok;
+  e.place_many(cands, 1, {}, placed, ok);
+  VolumePackResult r;
+  for (std::size_t i = 0; i < placed.size(); ++i)
+    if (ok[i]) {
+      e.add(placed[i]);
+      ++r.seeds;
+    }
+  if (r.seeds == 0)
+    throw InputError("volume packing: no seed point lies inside material " + std::to_string(label) +
+                     " (a region thinner than its spacing?)");
+  if (p.progress)
+    info("volume packing, material " + std::to_string(label) + ": " + std::to_string(nfixed) + " fixed, " +
+         std::to_string(r.seeds) + " seeds");
+  const auto lr = e.relax("volume " + std::to_string(label), false);
+  r.converged = lr.converged;
+  r.iterations = lr.iterations;
+  r.splits = lr.splits;
+  r.deletions = lr.deletions;
+  r.fixed = nfixed;
+  for (const auto& q : e.particles()) {
+    if (q.fixed) continue;
+    r.points.push_back(q.p.x);
+    r.spacing.push_back(q.spacing);
+    r.labels.push_back(label);
+  }
+  r.stats = e.stats();
+  return r;
+}
+
+VolumePackResult pack_materials(const MaterialSet& materials, int outside_label, const std::vector<Vec3>& vertices,
+                                const std::vector<std::array<int, 3>>& triangles,
+                                const std::vector<std::array<int, 2>>& triangle_labels, const VolumePackParams& p) {
+  if (triangles.size() != triangle_labels.size())
+    throw InputError("volume packing: " + std::to_string(triangles.size()) + " triangles but " +
+                     std::to_string(triangle_labels.size()) + " label pairs; expected one pair per triangle");
+  VolumePackResult all;
+  all.converged = true;
+  for (std::size_t m = 0; m < materials.size(); ++m) {
+    const int label = materials.labels[m];
+    if (label == outside_label) continue;
+    std::set<int> used;
+    for (std::size_t t = 0; t < triangles.size(); ++t)
+      if (triangle_labels[t][0] == label || triangle_labels[t][1] == label)
+        for (int v : triangles[t]) used.insert(v);
+    if (used.empty()) {
+      warn("volume packing: material " + std::to_string(label) + " has no interface triangles; not packed");
+      continue;
+    }
+    std::vector<Vec3> fixed;
+    fixed.reserve(used.size());
+    for (int v : used) {
+      if (v < 0 || std::size_t(v) >= vertices.size())
+        throw InputError("volume packing: triangle vertex " + std::to_string(v) + " out of range [0, " +
+                         std::to_string(vertices.size()) + ")");
+      fixed.push_back(vertices[std::size_t(v)]);
+    }
+    const auto region = material_region_field(materials, m);
+    VolumePackResult r = pack_volume(*region, 0.0, fixed, p, label);
+    all.points.insert(all.points.end(), r.points.begin(), r.points.end());
+    all.spacing.insert(all.spacing.end(), r.spacing.begin(), r.spacing.end());
+    all.labels.insert(all.labels.end(), r.labels.begin(), r.labels.end());
+    all.fixed += r.fixed;
+    all.seeds += r.seeds;
+    all.converged = all.converged && r.converged;
+    all.iterations += r.iterations;
+    all.splits += r.splits;
+    all.deletions += r.deletions;
+    add_stats(all.stats, r.stats);
+  }
+  return all;
+}
+
+}  // namespace pm
