@@ -22,7 +22,7 @@ SAMPLER=multiparticles
 make -s -f "$SRC/Makefile.pipeline" materials INPUT="$T/tiny.nrrd" OUT="$T/out" BIN="$BIN" R=1 SAMPLER=$SAMPLER \
   REQUIRE=watertight,manifold,labels_consistent 2> "$T/make.err" || { cat "$T/make.err" >&2; exit 1; }
 for f in work/labels.nrrd work/morph.nrrd work/sdf_0.nrrd work/sdf_1.nrrd work/sdf_2.nrrd work/materials.spec \
-         work/h.nrrd work/junction_seeds.ply points.ply interfaces.ply material_1.ply material_2.ply volume.mesh \
+         work/h.nrrd work/junction_seeds.ply points.ply interfaces.ply material_1.ply material_2.ply \
          quality.json interfaces.png interfaces_clipped.png points.png; do
   test -s "$T/out/$f" || { echo "missing $f" >&2; ls -R "$T/out" >&2; exit 1; }
 done

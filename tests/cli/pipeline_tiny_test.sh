@@ -23,7 +23,7 @@ tail -n 1 "$T/make.err" | grep -Eq '^materials: [0-9]+ vertices, 5 materials, [0
   { echo "bad summary line" >&2; exit 1; }
 # Results in OUT, intermediates in OUT/work.
 # (label 0 also stands for the outside of the volume: its surface is not written as a file)
-for f in points.ply interfaces.ply volume.mesh quality.json interfaces.png interfaces_clipped.png points.png \
+for f in points.ply interfaces.ply quality.json interfaces.png interfaces_clipped.png points.png \
          material_1.ply material_2.ply material_3.ply material_4.ply; do
   test -s "$T/out/$f" || { echo "missing OUT/$f" >&2; ls "$T/out" >&2; exit 1; }
 done

@@ -173,7 +173,7 @@ TEST(InteriorSizing, GrowsInwardAtTheGradientBoundAndIsCapped) {
   for (std::size_t i = 0; i < h.count(); ++i) h.set(i, 1.0);
   const Mesh sphere = testing::icosphere(4, 9.0);  // edges ≈ 0.5
   const double band = 1.0, delta = 0.2;
-  const GradLimitResult r = interior_sizing(h, sphere.vertices, band, delta, 0);
+  const GradLimitResult r = interior_sizing(h, sphere.vertices, band, delta, 100);
   // At the centre the kept shell is 9 − band away (± half a voxel of
   // quantisation, plus the propagation's few % of delta × a voxel).
   EXPECT_NEAR(r.h.get(20, 20, 20), 1 + delta * (9 - band), delta * 0.5 + 0.02);
@@ -182,6 +182,10 @@ TEST(InteriorSizing, GrowsInwardAtTheGradientBoundAndIsCapped) {
   const GradLimitResult capped = interior_sizing(h, sphere.vertices, band, delta, 2.0);
   EXPECT_DOUBLE_EQ(capped.h.get(20, 20, 20), 2.0);
   EXPECT_DOUBLE_EQ(capped.h.get(38, 20, 20), 1.0);
+  // No cap given: the largest kept h (here 1) caps the interior.
+  const GradLimitResult own = interior_sizing(h, sphere.vertices, band, delta, 0);
+  EXPECT_DOUBLE_EQ(own.cap, 1.0);
+  EXPECT_DOUBLE_EQ(own.h.get(20, 20, 20), 1.0);
   EXPECT_THROW(interior_sizing(h, sphere.vertices, 0, delta, 0), UsageError);
   EXPECT_THROW(interior_sizing(h, sphere.vertices, band, delta, -1), UsageError);
   EXPECT_THROW(interior_sizing(h, {Vec3{100, 100, 100}}, band, delta, 0), InputError);

@@ -37,7 +37,7 @@ int main(int argc, char** argv) {
                                           "surface's vertices (.ply .off .obj .stl .vtk .vtp .mesh, world units) and "
                                           "grow it inward from there with --delta");
   tool.app.add_option("--band", band, "With --inward: world units (default 2 voxels of the smallest spacing)");
-  auto* max_size_opt = tool.app.add_option("--max-size", max_size, "With --inward: cap on h, world units (> 0; default none)");
+  auto* max_size_opt = tool.app.add_option("--max-size", max_size, "With --inward: cap on h, world units (> 0; default: the largest h near the surface)");
   bool gzip = false;
   tool.app.add_flag("--gzip", gzip, "Compress the output where the format allows (a dense float field shrinks by "
                                     "only ~30% and gzip takes seconds on 256^3; off by default)");
@@ -78,6 +78,8 @@ int main(int argc, char** argv) {
           st["parameters"]["band"] = band;
           st["parameters"]["max_size"] = max_size;
           r = pm::interior_sizing(h, surface.vertices, band, p.delta, max_size);
+          st["parameters"]["cap"] = r.cap;
+          pm::info("interior sizing capped at " + std::to_string(r.cap) + " world units");
         }
       } catch (const pm::InputError& e) {
         throw pm::InputError(pm::quote(in) + ": " + e.what());

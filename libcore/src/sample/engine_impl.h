@@ -162,6 +162,25 @@ void ParticleEngine<C>::gather(const Vec3& x, double reach, std::size_t self, st
                                std::vector<Cand>& out) const {
   out.clear();
   const double r2 = reach * reach;
+  const Particle& P0 = parts_[self];
+  if (fine_w_ > 0 && reach + cell_smax_[cell] <= fine_w_) {
+    std::int32_t fb[27];
+    if (fine_.block_of(x, fb)) {
+      const std::vector<std::uint32_t>& ord = fine_.order();
+      for (int k = 0; k < 27; ++k) {
+        if (fb[k] < 0) continue;
+        const std::size_t c = std::size_t(fb[k]);
+        for (std::uint32_t f = fine_.begin(c); f < fine_.end(c); ++f) {
+          const std::uint32_t q = ord[f];
+          if (norm2(pos_[q] - x) >= r2 || q == self) continue;
+          const Particle& o = parts_[q];
+          if (!sees(P0, o)) continue;
+          out.push_back(cand_of(P0, o));
+        }
+      }
+      return;
+    }
+  }
   const std::int32_t* nb = bins_.block(cell);
   int m[3];
   bins_.axis_masks(cell, x, reach + d_max_, m);
@@ -304,6 +323,7 @@ void ParticleEngine<C>::rebin(bool for_lists) {
   }
   d_max_ = dmax;
   lists_valid_ = false;
+  fine_w_ = 0;  // the fine grid indexes the old order
   const double w = r_max_ * type_max_ + (for_lists ? kSpacingSlack + 2 * kListSkin : 2.0) * d_max_;
   pos_.resize(n);
   active_.resize(n);
@@ -317,6 +337,47 @@ void ParticleEngine<C>::rebin(bool for_lists) {
   for (std::size_t i = 0; i < n; ++i) scratch_[i] = parts_[order[i]];
   parts_.swap(scratch_);
   for (std::size_t i = 0; i < n; ++i) pos_[i] = parts_[i].p.x;
+  if (p_.fine_bins && !for_lists) build_fine();
+}
+
+// The fine grid (EngineParams::fine_bins): a particle gathers from the 3x3x3
+// fine cells around it when its gather radius plus the largest spacing of
+// the free particles in its own bin fits in one fine cell. The grid is
+// rebuilt before every colour of a sweep, so the only candidates that can
+// have moved since are those of the particle's own bin (one move each, at
+// most its spacing); bins of one colour never interact. The fine width is a
+// low quantile of those needs, so the small particles of a graded packing
+// gather from a few fine cells instead of up to 27 wide bins. Which grid a
+// particle uses depends only on the state: runs stay deterministic for any
+// thread count.
+constexpr double kFineQuantile = 0.5;
+
+template <class C>
+void ParticleEngine<C>::build_fine() {
+  using namespace engine_constants;
+  const std::size_t n = parts_.size(), nc = bins_.cells();
+  fine_w_ = 0;
+  cell_smax_.assign(nc, 0.0);
+  for (std::size_t c = 0; c < nc; ++c)
+    for (std::uint32_t q = bins_.begin(c); q < bins_.end(c); ++q)
+      if (!parts_[q].fixed) cell_smax_[c] = std::max(cell_smax_[c], parts_[q].spacing);
+  std::vector<double> need;
+  need.reserve(n);
+  for (std::size_t c = 0; c < nc; ++c)
+    for (std::uint32_t q = bins_.begin(c); q < bins_.end(c); ++q) {
+      const Particle& P = parts_[q];
+      if (P.fixed) continue;
+      const double cap = varying() ? kSpacingSlack * P.spacing : P.spacing;
+      need.push_back(radius_bound(cap) + kGatherMargin * P.spacing + cell_smax_[c]);
+    }
+  if (need.empty()) return;
+  const std::size_t at = std::size_t(double(need.size()) * kFineQuantile);
+  std::nth_element(need.begin(), need.begin() + std::ptrdiff_t(at), need.end());
+  const double wf = need[at];
+  if (!(wf < 0.5 * bins_.width())) return;  // no gain over the bins
+  no_colour_.assign(n, 0);
+  fine_.build(pos_, wf, no_colour_);
+  fine_w_ = fine_.width();
 }
 
 // Cached neighbour lists (SPEC §3.7), built right after rebin(true):
@@ -432,6 +493,7 @@ double ParticleEngine<C>::sweep(double& energy) {
   for (int colour = 0; colour < kColours; ++colour) {
     const std::uint32_t b = bins_.colour_begin(colour), e = bins_.colour_end(colour);
     if (b == e) continue;
+    if (fine_w_ > 0) fine_.build(pos_, fine_w_, no_colour_);  // positions after the previous colours
     if (serial) {
       run_cells(b, e);
       continue;

@@ -295,11 +295,13 @@ GradLimitResult interior_sizing(const Volume& h, const std::vector<Vec3>& bounda
   }
   Volume masked(VoxelType::f32, d, g);
   std::size_t kept = 0;
+  double kept_max = 0;
   for (std::size_t v = 0; v < h.count(); ++v) {
     const double hv = h.get(v);
     const bool k = keep[v] && std::isfinite(hv) && hv > 0;
     masked.set(v, k ? hv : 0.0);
     kept += k;
+    if (k) kept_max = std::max(kept_max, hv);
   }
   if (kept == 0)
     throw InputError("interior sizing: no boundary point lies within " + std::to_string(band) +
@@ -307,9 +309,9 @@ GradLimitResult interior_sizing(const Volume& h, const std::vector<Vec3>& bounda
   GradLimitParams p;
   p.delta = delta;
   GradLimitResult r = gradient_limit(masked, p);
-  if (max_size > 0)
-    for (std::size_t v = 0; v < r.h.count(); ++v)
-      if (r.h.get(v) > max_size) r.h.set(v, max_size);
+  r.cap = max_size > 0 ? max_size : kept_max;
+  for (std::size_t v = 0; v < r.h.count(); ++v)
+    if (r.h.get(v) > r.cap) r.h.set(v, r.cap);
   return r;
 }
 

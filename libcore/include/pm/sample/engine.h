@@ -221,6 +221,10 @@ struct EngineParams {
   double settled_move = 0;
   int settled_recheck = 8;
   int reproject_steps = engine_constants::kReprojectSteps;  ///< constraint steps after a tangent move
+  /// Strongly graded spacings (volume packing): besides the bins, which are
+  /// as wide as the largest interaction radius, keep a finer grid from
+  /// which particles with a short reach gather their neighbours.
+  bool fine_bins = false;
 };
 
 /// Copy the relaxation settings every configuration's params struct names
@@ -504,6 +508,7 @@ class ParticleEngine {
   double sweep(double& energy);
   bool population_control(std::uint64_t tag, bool final_check, LevelResult& lr);
   bool adapt_spacing();
+  void build_fine();
   std::int64_t anchor_cover(const Particle& a, const std::vector<char>* dead) const;
   void keep_anchor_covers(std::vector<char>& del, std::size_t& ndel) const;
   void keep_covered(std::vector<char>& del, std::size_t& ndel) const;
@@ -523,6 +528,13 @@ class ParticleEngine {
   std::vector<char> active_;
   std::uint64_t next_id_ = 0, iteration_ = 0;
   SampleBins bins_;
+  // fine_bins: the finer grid (rebuilt before every colour), the largest
+  // spacing of the free particles in each bin (how far a candidate can have
+  // moved since), and the fine width (0 = not in use).
+  SampleBins fine_;
+  std::vector<double> cell_smax_;
+  std::vector<char> no_colour_;
+  double fine_w_ = 0;
 
   std::vector<std::uint32_t> nbr_start_, nbr_;
   std::vector<Vec3> list_x_;

@@ -12,8 +12,9 @@
 // pm/volume/gradlimit.h), or a constant spacing. A free particle's ideal
 // neighbours are the 12 of a close packing.
 //
-// Seeding: an octree over the region's box emits one point per cube of
-// edge ≈ h(centre) inside F < iso; points closer than `seed_clearance` × h
+// Seeding: an octree over the region's box, whose leaves (cubes of edge up
+// to 2 h(centre)) hold a cubic lattice at the density of a close packing at
+// distance h, kept inside F < iso; points closer than `seed_clearance` × h
 // to a boundary particle or to an earlier seed are dropped (thin_points).
 // Population control then splits and deletes towards the ideal density.
 #include <array>

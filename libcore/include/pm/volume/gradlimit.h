@@ -56,6 +56,8 @@ struct GradLimitResult {
   /// divided by delta (propagate: 1 up to float rounding, about
   /// 1e-7 h / (delta * spacing)).
   double max_slope_ratio = 0;
+  /// interior_sizing: the cap applied (max_size, or the largest kept h).
+  double cap = 0;
 };
 
 /// \throw UsageError for delta <= 0 or tolerance <= 0; InputError for an
@@ -69,7 +71,11 @@ GradLimitResult gradient_limit(const Volume& h0, const GradLimitParams& p = {});
 /// a boundary point (the final surface's vertices) and is unknown
 /// everywhere else; gradient limiting with `delta` then grows it away from
 /// the surface, h(x) = min_y (h(y) + delta |x - y|) over the kept voxels y,
-/// and `max_size` (world units, 0 = none) caps it.
+/// and `max_size` (world units) caps it; max_size = 0 caps it at the
+/// largest kept h, the surface's coarsest spacing. (The particle engine's
+/// bins are as wide as the largest interaction radius, so an interior far
+/// coarser than the surface makes every bin near the surface crowded:
+/// raising the cap coarsens the deep interior at a cost in speed.)
 /// \throw UsageError for band <= 0, delta <= 0 or max_size < 0; InputError
 /// when no boundary point lies within band of a voxel of h.
 GradLimitResult interior_sizing(const Volume& h, const std::vector<Vec3>& boundary, double band, double delta,
