@@ -171,6 +171,7 @@ Mesh parse_medit(const std::string& path, WorldFrame* frame, std::vector<std::ar
   };
   auto number = [&](const std::string& what) {
     const std::string t = token();
+    if (t.empty()) throw fail(what + ": unexpected end of file (truncated?)");
     char* end = nullptr;
     const double v = std::strtod(t.c_str(), &end);
     if (t.empty() || *end != '\0' || !std::isfinite(v))
