@@ -61,9 +61,19 @@ mixed.write(f"{T}/meshio_42a.vtk", file_format="vtk42", binary=False)
 medit = meshio.Mesh(pts, [("tetra", tets), ("triangle", tris)],
                     cell_data={"medit:ref": [mat, np.array([9])]})
 medit.write(f"{T}/meshio.mesh")
-g = meshio.Mesh(pts, [("tetra", tets)], cell_data={"gmsh:physical": [mat], "gmsh:geometrical": [mat]})
+# Gmsh 4.1: meshio keeps physical tags only through $Entities, which it writes from
+# gmsh:dim_tags (one volume entity 100 + m per material m, one cell block each).
+node_entity = np.zeros(len(pts), int)
+for c, m in zip(tets, mat): node_entity[c] = 100 + m
+g = meshio.Mesh(pts, [("tetra", tets[mat == m]) for m in (1, 2, 3)],
+                cell_data={"gmsh:physical": [np.full((mat == m).sum(), m) for m in (1, 2, 3)],
+                           "gmsh:geometrical": [np.full((mat == m).sum(), 100 + m) for m in (1, 2, 3)]},
+                point_data={"gmsh:dim_tags": np.stack([np.full(len(pts), 3), node_entity], axis=1)},
+                field_data={f"material_{m}": np.array([m, 3]) for m in (1, 2, 3)})
 g.write(f"{T}/meshio_41b.msh", file_format="gmsh")
 g.write(f"{T}/meshio_41a.msh", file_format="gmsh", binary=False)
+back = meshio.read(f"{T}/meshio_41a.msh")  # meshio itself reads the materials back
+assert sorted(np.concatenate(back.cell_data["gmsh:physical"]).tolist()) == sorted(mat.tolist())
 g22 = meshio.Mesh(pts, [("tetra", tets), ("triangle", tris)],
                   cell_data={"gmsh:physical": [mat, np.array([9])], "gmsh:geometrical": [mat, np.array([9])]})
 g22.write(f"{T}/meshio_22a.msh", file_format="gmsh22", binary=False)
@@ -206,7 +216,7 @@ head -c 2000 "$T/meshio_41b.msh" > "$T/cut.msh"
 expect_fail 1 "meshstats: error: read_gmsh: .*cut.msh.*line [0-9]+: .*truncated" "$MS" "$T/cut.msh"
 $PY -c "
 import meshio, numpy as np
-meshio.Mesh(np.eye(4), [('tetra', np.array([[0, 1, 2, 3]]))]).write('$T/ansys.msh')"
+meshio.Mesh(np.eye(4)[:, :3], [('tetra', np.array([[0, 1, 2, 3]]))]).write('$T/ansys.msh')"
 expect_fail 1 "meshstats: error: read_gmsh: .*ansys.msh.*ANSYS" "$MS" "$T/ansys.msh"
 expect_fail 1 "render: error: read_gmsh: .*ansys.msh.*ANSYS" "$RD" "$T/ansys.msh" -o "$T/x.png"
 expect_fail 2 "meshstats: usage error: requirement \"dihedral_min>=abc\": expected a number" "$MS" "$T/meshio.mesh" --require "dihedral_min>=abc"

@@ -5,6 +5,7 @@
 // that must fail cleanly.
 #include <gtest/gtest.h>
 
+#include <cctype>
 #include <cstring>
 #include <fstream>
 #include <functional>
@@ -127,7 +128,9 @@ TEST(TetMeshRead, SurfacesAreNotTetrahedra) {
   for (const char* f : {"/s.vtk", "/s.mesh"}) {
     EXPECT_FALSE(file_has_tetrahedra(dir + f)) << f;
     EXPECT_FALSE(is_tet_mesh_file(dir + f)) << f;
-    EXPECT_TRUE(has(error_of([&] { read_tet_mesh(dir + f); }), "no tetrahedra")) << f;
+    std::string e = error_of([&] { read_tet_mesh(dir + f); });
+    for (char& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
+    EXPECT_TRUE(has(e, "no tetrahedra")) << f;
   }
   EXPECT_FALSE(file_has_tetrahedra(dir + "/nope.vtu"));
   EXPECT_TRUE(is_tet_mesh_file(dir + "/nope.vtu"));  // read_tet_mesh then says why
@@ -266,7 +269,8 @@ TEST(TetMeshRead, LegacyVtk51And42AsMeshioWritesThem) {
   const std::string dir = test::temp_dir();
   spit(dir + "/a51.vtk", std::string("# vtk DataFile Version 5.1\nwritten by meshio v5.0.0\nASCII\nDATASET UNSTRUCTURED_GRID\n"
                                      "POINTS 5 double\n") + kPoints +
-                             "\nCELLS 4 11\nOFFSETS vtktypeint64\n0\n4\n8\n11\nCONNECTIVITY vtktypeint64\n0 1 2 3 1 2 3 4 0 1 2\n"
+                             "\n\nMETADATA\nINFORMATION 1\nNAME L2_NORM_RANGE LOCATION vtkDataArray\nDATA 2 0 1.7\n\n"  // VTK 9's writer
+                             "CELLS 4 11\nOFFSETS vtktypeint64\n0\n4\n8\n11\nCONNECTIVITY vtktypeint64\n0 1 2 3 1 2 3 4 0 1 2\n"
                              "CELL_TYPES 3\n10\n10\n5\nCELL_DATA 3\nFIELD FieldData 1\nmaterial 1 3 vtktypeint64\n1 2 3\n");
   expect_two_tets(read_tet_mesh(dir + "/a51.vtk"));
   spit(dir + "/a42.vtk", std::string("# vtk DataFile Version 4.2\nx SPACE=LPS\nASCII\nDATASET UNSTRUCTURED_GRID\n"
@@ -339,7 +343,7 @@ TEST(TetMeshRead, ClearErrors) {
   EXPECT_TRUE(has(err("v3.msh", "$MeshFormat\n3.0 0 8\n$EndMeshFormat\n"), "expected 4.1 or 2.2"));
   std::string e = err("node.msh", "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n1\n1 0 0 0\n$EndNodes\n$Elements\n1\n"
                                   "1 4 2 1 1 1 1 1 99\n$EndElements\n");
-  EXPECT_TRUE(has(e, "node.msh\": line 9: $Elements element 0: node 99 is not defined"));
+  EXPECT_TRUE(has(e, "node.msh\": line 10: $Elements element 0: node 99 is not defined"));
   EXPECT_TRUE(has(err("hex.msh", "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n8\n1 0 0 0\n2 0 0 0\n3 0 0 0\n4 0 0 0\n"
                              "5 0 0 0\n6 0 0 0\n7 0 0 0\n8 0 0 0\n$EndNodes\n$Elements\n1\n1 5 0 1 2 3 4 5 6 7 8\n$EndElements\n"), "element type 5 is a 3-D element other than a tetrahedron"));
   EXPECT_TRUE(has(err("hex.vtk", std::string("# vtk DataFile Version 4.2\nx\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 8 float\n") +

@@ -720,10 +720,7 @@ class LegacyTetReader {
       } else if (key == "METADATA") {
         // VTK 9's array information: lines up to an empty one.
         in_.next_line();
-        while (!in_.at_end()) {
-          const std::size_t b = in_.pos();
-          if (in_.line().empty()) break;
-          if (in_.pos() == b) break;
+        while (in_.remaining() > 0 && !in_.line().empty()) {
         }
       } else {
         in_.fail("section " + quote(key.substr(0, 40)) +
