@@ -180,8 +180,10 @@ Mesh parse_medit(const std::string& path, WorldFrame* frame, std::vector<std::ar
   };
   auto count = [&](const std::string& what, std::size_t min_bytes) {
     const double n = number(what + " count");
-    if (!(n >= 0) || n != std::floor(n) || n * double(min_bytes) > double(d.size() - p) + 1)
-      throw fail(what + " count " + std::to_string(n) + " is negative, fractional or more than the file holds");
+    if (!(n >= 0) || n != std::floor(n))
+      throw fail(what + " count " + format_number(n) + "; expected a non-negative integer");
+    if (n * double(min_bytes) > double(d.size() - p) + 1)
+      throw fail(what + " count " + format_number(n) + " is more than the rest of the file holds (truncated?)");
     return std::size_t(n);
   };
   if (token() != "MeshVersionFormatted") throw fail("expected \"MeshVersionFormatted\" (a MEDIT .mesh file)");
