@@ -151,6 +151,9 @@ class VtuReader {
             cells.conn.push_back(x >= 0 ? x + double(base) : x);
           }
           cells.begin.push_back(cells.conn.size());
+          if (!(types[c] >= 0 && types[c] <= 255))
+            fail(named(ce, "types"), "cell " + std::to_string(c) + ": type " + format_number(types[c]) +
+                                         "; expected a VTK cell type (0..255)");
           cells.types.push_back(int(types[c]));
         }
       }
@@ -196,7 +199,8 @@ class VtuReader {
     const char* v = e->Attribute(attr);
     char* end = nullptr;
     const double n = v ? std::strtod(v, &end) : -1;
-    if (!v || *end != '\0' || !(n >= 0 && n <= double(data_.size())) || n != std::floor(n))
+    // Compressed arrays can hold up to 1032 bytes per byte of the file.
+    if (!v || *end != '\0' || !(n >= 0 && n <= 1032.0 * double(data_.size())) || n != std::floor(n))
       fail(e, std::string(attr) + " " + quote(v ? v : "(none)") +
                   "; expected a count no larger than the file (truncated or corrupt?)");
     return std::size_t(n);
@@ -324,6 +328,8 @@ class VtuReader {
     std::vector<double> v;
     if (format == "ascii") {
       const char* p = da->GetText();
+      if (want > data_.size() / 2 + 1)
+        fail(da, what + ": " + std::to_string(want) + " values are more than the file holds (truncated or a bad count?)");
       v.reserve(want);
       while (p && v.size() < want) {
         while (*p && std::isspace(static_cast<unsigned char>(*p))) ++p;
