@@ -132,6 +132,15 @@ TEST(TetMeshRead, SurfacesAreNotTetrahedra) {
     for (char& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
     EXPECT_TRUE(has(e, "no tetrahedra")) << f;
   }
+  // A truncated tetrahedral .vtk goes to the tetrahedral reader; a truncated POLYDATA stays a surface.
+  write_tet_mesh(sample(), dir + "/t.vtk");
+  const std::string whole = slurp(dir + "/t.vtk");
+  spit(dir + "/cut.vtk", whole.substr(0, whole.size() / 2));
+  EXPECT_FALSE(file_has_tetrahedra(dir + "/cut.vtk"));
+  EXPECT_TRUE(is_tet_mesh_file(dir + "/cut.vtk"));
+  EXPECT_TRUE(has(error_of([&] { read_tet_mesh(dir + "/cut.vtk"); }), "(truncated"));
+  spit(dir + "/cut_poly.vtk", "# vtk DataFile Version 4.2\nx\nASCII\nDATASET POLYDATA\nPOINTS 9 float\n0 0");
+  EXPECT_FALSE(is_tet_mesh_file(dir + "/cut_poly.vtk"));
   EXPECT_FALSE(file_has_tetrahedra(dir + "/nope.vtu"));
   EXPECT_TRUE(is_tet_mesh_file(dir + "/nope.vtu"));  // read_tet_mesh then says why
   EXPECT_THROW(read_tet_mesh(dir + "/nope.vtu"), IoError);
@@ -280,6 +289,14 @@ TEST(TetMeshRead, LegacyVtk51And42AsMeshioWritesThem) {
                              "CELL_DATA 3\nSCALARS gmsh:physical int\nLOOKUP_TABLE default\n1 2 3\n"
                              "VECTORS v double\n0 0 0 1 1 1 2 2 2\n");
   expect_two_tets(read_tet_mesh(dir + "/a42.vtk"));
+  // Triangles' label pairs from cell arrays label_a and label_b (as write_vtk names them), in ascending order.
+  spit(dir + "/pairs.vtk", std::string("# vtk DataFile Version 4.2\nx\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 5 float\n") +
+                               kPoints + "\nCELLS 3 14\n4 0 1 2 3\n4 1 2 3 4\n3 0 1 2\nCELL_TYPES 3\n10 10 5\nCELL_DATA 3\n"
+                               "SCALARS material int 1\nLOOKUP_TABLE default\n1 2 0\nSCALARS label_a int 1\nLOOKUP_TABLE default\n"
+                               "0 0 2\nSCALARS label_b int 1\nLOOKUP_TABLE default\n0 0 1\n");
+  const LabelledTets pairs = read_tet_mesh(dir + "/pairs.vtk");
+  expect_two_tets(pairs, false);
+  EXPECT_EQ(pairs.triangle_labels, (std::vector<std::array<int, 2>>{{1, 2}}));
   // BINARY 5.1: big-endian values after each section line.
   std::string b = "# vtk DataFile Version 5.1\nx\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS 5 double\n" +
                   raw(std::vector<double>{0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 1, 1, 1}, true) +

@@ -1,6 +1,7 @@
 // The table of tetrahedral mesh formats, write_tet_mesh and read_tet_mesh (see pm/io/tet_mesh.h).
 #include "pm/io/tet_mesh.h"
 
+#include <fstream>
 #include <vector>
 
 #include "pm/base/atomic_file.h"
@@ -110,7 +111,29 @@ bool file_has_tetrahedra(const std::string& path) {
 
 bool is_tet_mesh_file(const std::string& path) {
   const TetFormat* f = find(path);
-  return f && (f->only_tets || file_has_tetrahedra(path));
+  if (!f) return false;
+  if (f->only_tets) return true;
+  if (std::string(f->ext) == ".mesh") return medit_has_tetrahedra(path);
+  try {
+    return !f->read(path, nullptr).tets.empty();
+  } catch (const IoError&) {
+    return false;  // the surface reader says why
+  } catch (const InputError&) {
+    // A legacy UNSTRUCTURED_GRID that the surface reader cannot read either
+    // (a truncated or damaged tetrahedral file, say) goes to the tetrahedral
+    // reader, whose message names the line; other datasets stay surfaces.
+    std::ifstream in(path, std::ios::binary);
+    std::string head(256, '\0');
+    in.read(&head[0], std::streamsize(head.size()));
+    head.resize(std::size_t(in.gcount()));
+    if (head.find("DATASET UNSTRUCTURED_GRID") == std::string::npos) return false;
+    try {
+      read_vtk(path);
+      return false;
+    } catch (const Error&) {
+      return true;
+    }
+  }
 }
 
 void write_tet_mesh(const LabelledTets& t, const std::string& path, const TetWriteParams& p) {

@@ -60,7 +60,9 @@ bool file_has_tetrahedra(const std::string& path);
 
 /// Whether read_tet_mesh (rather than a surface reader) is the reader for
 /// `path`: .vtu and .msh always (nothing else here reads them), .mesh and
-/// .vtk when file_has_tetrahedra (else they are surfaces for read_mesh).
+/// .vtk when file_has_tetrahedra (else they are surfaces for read_mesh), and
+/// a legacy UNSTRUCTURED_GRID .vtk that neither reader can read (a truncated
+/// tetrahedral file: read_tet_mesh's message names the line).
 bool is_tet_mesh_file(const std::string& path);
 
 /// Write by extension, atomically (temporary file + rename).
