@@ -38,7 +38,8 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"auto", "disks", "splats", "mesh"}))
       ->capture_default_str();
   tool.app.add_option("--color-by", p.color_by,
-                      "Colour by a vertex property (viridis) or face int property (categories); default plain");
+                      "Colour by a vertex property (viridis) or face int property (categories); default plain "
+                      "(tetrahedral meshes: always by material)");
   tool.app.add_option("--radius", p.radius,
                       "Disk/splat radius, world units (0 = auto per point: about the local spacing, the distance "
                       "to the 6th nearest neighbour, x0.9 for disks, x1.0 for splats)")
@@ -47,7 +48,7 @@ int main(int argc, char** argv) {
   tool.app.add_flag("--edges", p.edges, "Mesh mode: draw triangle edges over the shading");
   tool.app.add_flag("--legend", p.legend,
                     "With a face property colour: a key in the top-left corner naming each colour (interface "
-                    "meshes: the material pair label_a-label_b)");
+                    "meshes: the material pair label_a-label_b; tetrahedral meshes: each material shown)");
   tool.app.add_option("--clip", p.clip,
                       "Mesh mode: cut at the plane x, y or z (optionally :F, the fraction 0..1 of the bounding box, "
                       "default 0.5) and leave out the faces (tetrahedra: the whole tetrahedra, by centroid) on the "
