@@ -191,6 +191,13 @@ pm_cli_test(meshstats.bad_requirement "meshstats: usage error: requirement \"fro
 pm_cli_test(meshstats.check_fails "meshstats: check failed: .*tet.off.*rr_min>=0.99" ${MS} ${D}/tet.off --require rr_min>=0.99)
 pm_cli_test(meshstats.tets_bad_requirement "meshstats: usage error: requirement \"watertight\" is unknown for a tetrahedral mesh" ${MS} ${D}/kuhn_cube.mesh --require watertight)
 pm_cli_test(meshstats.tets_check_fails "meshstats: check failed: .*kuhn_cube.mesh.*min_dihedral>=50 \\(have 45\\)" ${MS} ${D}/kuhn_cube.mesh --require min_dihedral>=50)
+# Issue 19: tetrahedral meshes in every format, as meshio, VTK (ParaView, Slicer) and tetlabel write them:
+# meshstats counts, materials, volume and --require exit codes; render --clip colours; bad input.
+pm_cli_script(tets.other_writers tet_formats_test.sh)
+set_tests_properties(cli.tets.other_writers PROPERTIES TIMEOUT 600)
+pm_cli_test(meshstats.tets_issue_keys "meshstats: check failed: .*kuhn_cube.mesh.*: 1 requirement\\(s\\) not met: share_25_140<0.5 \\(have 1\\)" ${MS} ${D}/kuhn_cube.mesh --require dihedral_min>=12,dihedral_max<=160,share_25_140<0.5)
+pm_cli_test(meshstats.tets_truncated "meshstats: error: read_medit: .*kuhn_trunc.mesh.*: line 15: Tetrahedra count 6 is more than the rest of the file holds \\(truncated\\?\\)"
+  sh -c "head -c 230 ${D}/kuhn_cube.mesh > /tmp/pm_kuhn_trunc.mesh && exec ${MS} /tmp/pm_kuhn_trunc.mesh")
 pm_cli_script(mesh.workflow mesh_test.sh)
 # == baseline (marching cubes, CGAL Mesh_3) and Chapter 5 bad input
 pm_cli_script(baseline.sphere baseline_test.sh)

@@ -111,6 +111,41 @@ TEST(TetQuality, FindsAnInvertedTetMissingTrianglesAndANonManifoldBoundary) {
   EXPECT_EQ(check_tet_requirements(n, "boundary_manifold").size(), 1u);
 }
 
+TEST(TetQuality, IssueTargetsShareAndKeyNames) {
+  // Kuhn tetrahedra (45°, 60°, 90°) lie within 25..140°; a sliver (four
+  // nearly coplanar corners: angles near 0° and 180°) does not.
+  LabelledTets t = kuhn_cube();
+  t.vertices.push_back({3, 0, 0});
+  t.vertices.push_back({4, 0, 0});
+  t.vertices.push_back({3.5, 1, 0.02});
+  t.vertices.push_back({3.5, -1, 0.02});
+  t.tets.push_back({8, 9, 10, 11});
+  t.materials.push_back(5);
+  {
+    auto& c = t.tets.back();
+    const Vec3 &a = t.vertices[8], &b = t.vertices[9], &d = t.vertices[10], &e = t.vertices[11];
+    if (dot(b - a, cross(d - a, e - a)) < 0) std::swap(c[2], c[3]);
+  }
+  t.triangles.clear();
+  t.triangle_labels.clear();
+  const TetQuality q = tet_quality(t);
+  EXPECT_EQ(q.overall.within_25_140, 6u);
+  EXPECT_NEAR(q.overall.share_25_140(), 6.0 / 7, 1e-15);
+  EXPECT_EQ(q.materials.at(5).within_25_140, 0u);
+  EXPECT_GT(q.overall.dihedral_max, 170.0);
+  EXPECT_LT(q.overall.dihedral_min, 5.0);
+  // The issue's key names and the older ones, with the value found on failure.
+  const auto failed = check_tet_requirements(q, "dihedral_min>=12, dihedral_max<=160,share_25_140>=0.99,rr_mean>=0");
+  ASSERT_EQ(failed.size(), 3u);
+  EXPECT_EQ(failed[0].rfind("dihedral_min>=12 (have ", 0), 0u) << failed[0];
+  EXPECT_EQ(failed[2].rfind("share_25_140>=0.99 (have 0.857143)", 0), 0u) << failed[2];
+  EXPECT_EQ(check_tet_requirements(q, "min_dihedral>=12,max_dihedral<=160").size(), 2u);
+  EXPECT_TRUE(check_tet_requirements(q, "share_25_140>0.85,dihedral_max<180,rr_min>=0").empty());
+  EXPECT_THROW(check_tet_requirements(q, "dihedral_min>=twelve"), UsageError);
+  EXPECT_THROW(check_tet_requirements(q, "dihedral_mean>=12"), UsageError);
+  EXPECT_EQ(to_json(q)["overall"]["share_25_140"].get<double>(), q.overall.share_25_140());
+}
+
 TEST(TetQuality, MeditRoundTrip) {
   const LabelledTets t = kuhn_cube();
   const std::string path = test::temp_dir() + "/kuhn.mesh";

@@ -10,8 +10,8 @@
 #include "pm/base/stats.h"
 #include "pm/cli/field_options.h"
 #include "pm/cli/run_tool.h"
-#include "pm/io/medit.h"
 #include "pm/io/mesh.h"
+#include "pm/io/tet_mesh.h"
 #include "pm/io/volume_io.h"
 #include "pm/mesh/coverage.h"
 #include "pm/mesh/meshstats.h"
@@ -75,18 +75,23 @@ int main(int argc, char** argv) {
                 "material's surface taken from the interfaces), plus boundary, junction-curve and bad edges and "
                 "faces separating a label from itself (--require keys watertight, manifold, "
                 "no_self_intersections, labels_consistent and rr_min/rr_mean then hold for every material). A "
-                "tetrahedral MEDIT .mesh (tetlabel --tets) gets the volume report: dihedral angles, radius ratio "
-                "3 r_in / r_circ, share of tetrahedra under 10 degrees, volume, per material and overall, and the "
-                "checks positive, boundary_manifold, triangles_match (--require also min_dihedral>=D, rr_min>=R, "
-                "share_under_10<=S).",
+                "tetrahedral mesh (.mesh .vtu .vtk .msh with tetrahedra: tetlabel --tets, meshio, Gmsh, ParaView) "
+                "gets the volume report: dihedral angles (min, max, histogram), radius ratio 3 r_in / r_circ, the "
+                "shares of tetrahedra under 10 degrees and with every dihedral angle in 25..140 degrees, volume, "
+                "per material and overall, and the checks positive, boundary_manifold, triangles_match (--require "
+                "also dihedral_min>=D, dihedral_max<=D in degrees, rr_min>=R, rr_mean>=R, share_under_10<=S, "
+                "share_25_140>=S).",
                 "meshstats surface.ply -i brain_sdf.nrrd --iso 0 --sizing h.nrrd -o quality.json "
-                "--require rr_min>=0.3,rr_mean>=0.94,watertight,manifold");
+                "--require rr_min>=0.3,rr_mean>=0.94,watertight,manifold\n"
+                "  meshstats volume.vtu -o volume_quality.json "
+                "--require dihedral_min>=12,dihedral_max<=160,share_25_140>=0.99,rr_mean>=0.8,positive");
   std::string mesh_path, out, sizing_path, require;
   bool no_self = false, single = false;
   std::string seeds_path;
   std::size_t min_seeds = 8;
   pm::FieldOptions fo;
-  tool.app.add_option("mesh", mesh_path, "Triangle mesh (.ply .vtp .vtk .mesh .obj .off .stl) or tetrahedral .mesh")
+  tool.app.add_option("mesh", mesh_path,
+                      "Triangle mesh (.ply .vtk .mesh .obj .off .stl) or tetrahedral mesh (.mesh .vtu .vtk .msh)")
       ->required();
   pm::add_field_options(tool.app, fo);
   tool.app.add_option("--sizing", sizing_path, "Sizing field volume h (world units) for the edge/h check");
@@ -94,7 +99,8 @@ int main(int argc, char** argv) {
   tool.app.add_option("--require", require,
                       "Comma-separated checks, e.g. rr_min>=0.3,rr_mean>=0.94,valence6>=0.65,"
                       "valence_outside_5_7<=0.01,edge_le_2h>=0.9999,crease_share_20<=0.03,watertight,manifold,"
-                      "no_self_intersections,genus=0");
+                      "no_self_intersections,genus=0; tetrahedra: dihedral_min>=12,dihedral_max<=160,share_25_140>=0.99,"
+                      "rr_mean>=0.8,share_under_10<=0,positive,boundary_manifold,triangles_match");
   tool.app.add_flag("--no-self-intersections", no_self, "Skip the (slower) self-intersection test");
   tool.app.add_flag("--single", single, "Measure an interface mesh (label_a/label_b faces) as one plain mesh");
   tool.app.add_option("--seeds", seeds_path,
@@ -118,11 +124,12 @@ int main(int argc, char** argv) {
         });
       }
     };
-    if (pm::file_extension(mesh_path) == ".mesh" && pm::medit_has_tetrahedra(mesh_path)) {
+    if (pm::is_tet_mesh_file(mesh_path)) {
+      pm::check_tet_requirements(pm::TetQuality{}, require);  // usage errors before the work
       pm::TetQuality tq;
       {
         pm::ScopedStage s("quality");
-        tq = pm::tet_quality(pm::read_medit_tets(mesh_path));
+        tq = pm::tet_quality(pm::read_tet_mesh(mesh_path));
       }
       const pm::Json j = pm::to_json(tq);
       st["quality"] = j;

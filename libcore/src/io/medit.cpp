@@ -171,6 +171,7 @@ Mesh parse_medit(const std::string& path, WorldFrame* frame, std::vector<std::ar
   };
   auto number = [&](const std::string& what) {
     const std::string t = token();
+    if (t.empty()) throw fail(what + ": unexpected end of file (truncated?)");
     char* end = nullptr;
     const double v = std::strtod(t.c_str(), &end);
     if (t.empty() || *end != '\0' || !std::isfinite(v))
@@ -179,8 +180,10 @@ Mesh parse_medit(const std::string& path, WorldFrame* frame, std::vector<std::ar
   };
   auto count = [&](const std::string& what, std::size_t min_bytes) {
     const double n = number(what + " count");
-    if (!(n >= 0) || n != std::floor(n) || n * double(min_bytes) > double(d.size() - p) + 1)
-      throw fail(what + " count " + std::to_string(n) + " is negative, fractional or more than the file holds");
+    if (!(n >= 0) || n != std::floor(n))
+      throw fail(what + " count " + format_number(n) + "; expected a non-negative integer");
+    if (n * double(min_bytes) > double(d.size() - p) + 1)
+      throw fail(what + " count " + format_number(n) + " is more than the rest of the file holds (truncated?)");
     return std::size_t(n);
   };
   if (token() != "MeshVersionFormatted") throw fail("expected \"MeshVersionFormatted\" (a MEDIT .mesh file)");

@@ -1,4 +1,5 @@
-// VTK legacy and XML writers, and the legacy POLYDATA reader (see pm/io/vtk.h).
+// VTK legacy and XML writers, the legacy POLYDATA reader and the legacy
+// UNSTRUCTURED_GRID tetrahedra reader (see pm/io/vtk.h).
 #include "pm/io/vtk.h"
 
 #include <algorithm>
@@ -17,6 +18,8 @@
 #include "pm/base/atomic_file.h"
 #include "pm/base/error.h"
 #include "pm/io/ply.h"
+#include "scan.h"
+#include "vtk_cells.h"
 
 namespace pm {
 namespace {
@@ -587,6 +590,256 @@ void write_vtu(const LabelledTets& t, const std::string& path, WorldFrame frame)
   xml_ints(out, "UInt8", "types", types);
   out += "      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n</VTKFile>\n";
   save(out, path, where);
+}
+
+// ---- legacy UNSTRUCTURED_GRID as tetrahedra ----
+
+namespace {
+
+// Bytes of a legacy data type in BINARY files (0: not a type we read).
+int legacy_type_size(const std::string& t) {
+  if (t == "unsigned_char" || t == "char" || t == "vtktypeint8" || t == "vtktypeuint8") return 1;
+  if (t == "short" || t == "unsigned_short" || t == "vtktypeint16" || t == "vtktypeuint16") return 2;
+  if (t == "int" || t == "unsigned_int" || t == "float" || t == "vtktypeint32" || t == "vtktypeuint32" ||
+      t == "vtktypefloat32")
+    return 4;
+  if (t == "long" || t == "unsigned_long" || t == "double" || t == "vtktypeint64" || t == "vtktypeuint64" ||
+      t == "vtktypefloat64" || t == "vtkIdType")
+    return 8;
+  return 0;
+}
+
+class LegacyTetReader {
+ public:
+  LegacyTetReader(const std::string& data, const std::string& where) : in_(data, where), where_(where) {}
+
+  LabelledTets read(WorldFrame& frame) {
+    const std::string magic = in_.line();
+    if (magic.rfind("# vtk DataFile Version ", 0) != 0)
+      in_.fail("the file does not start with \"# vtk DataFile Version\"; expected a legacy VTK file");
+    version_ = std::atof(magic.c_str() + 23);
+    const std::string title = in_.line();
+    frame_from_comment(title, frame);
+    const std::string mode = in_.word();
+    if (mode != "ASCII" && mode != "BINARY") in_.fail("third line " + quote(mode) + "; expected ASCII or BINARY");
+    binary_ = mode == "BINARY";
+    if (in_.word() != "DATASET") in_.fail("expected \"DATASET UNSTRUCTURED_GRID\" after " + mode);
+    const std::string ds = in_.word();
+    if (ds != "UNSTRUCTURED_GRID")
+      in_.fail("DATASET " + quote(ds.substr(0, 40)) + "; expected UNSTRUCTURED_GRID (a tetrahedral mesh)");
+    bool have_points = false, have_types = false;
+    while (!in_.at_end()) {
+      const std::string key = in_.word();
+      if (key == "POINTS") {
+        const std::uint64_t n = count("POINTS", 3);
+        const std::string type = in_.word();
+        data_type(type, "POINTS");
+        in_.next_line();
+        points_.resize(n);
+        for (auto& p : points_)
+          for (int c = 0; c < 3; ++c) {
+            p[c] = value(type, "POINTS");
+            if (!std::isfinite(p[c])) in_.fail("POINTS: a coordinate is " + format_number(p[c]) + "; expected finite");
+          }
+        have_points = true;
+      } else if (key == "CELLS") {
+        version_ >= 5 ? cells5() : cells4();
+      } else if (key == "CELL_TYPES") {
+        const std::uint64_t n = count("CELL_TYPES", 1);
+        if (n + 1 != cells_.begin.size())
+          in_.fail("CELL_TYPES " + std::to_string(n) + "; expected " +
+                   std::to_string(cells_.begin.empty() ? 0 : cells_.begin.size() - 1) + " (the CELLS count; CELLS first)");
+        in_.next_line();
+        cells_.types.resize(n);
+        for (int& t : cells_.types) t = int(integer("int", "CELL_TYPES"));
+        have_types = true;
+      } else if (key == "CELL_DATA" || key == "POINT_DATA") {
+        cell_data_ = key == "CELL_DATA";
+        attr_count_ = count(key, 1);
+        const std::size_t expect = cell_data_ ? cells_.types.size() : points_.size();
+        if (attr_count_ != expect)
+          in_.fail(key + " " + std::to_string(attr_count_) + "; expected " + std::to_string(expect) +
+                   (cell_data_ ? " (the cell count)" : " (the point count)"));
+        in_.next_line();
+      } else if (key == "SCALARS") {
+        need_attributes(key);
+        const std::string name = in_.word(), type = in_.word();
+        data_type(type, "SCALARS " + name);
+        const std::string extra = in_.line();
+        const int comps = extra.empty() ? 1 : std::atoi(extra.c_str());
+        if (comps < 1 || comps > 4) in_.fail("SCALARS " + name + ": " + quote(extra) + " components; expected 1 to 4");
+        if (in_.word() != "LOOKUP_TABLE") in_.fail("SCALARS " + name + ": expected a LOOKUP_TABLE line");
+        in_.line();
+        array(name, type, std::uint64_t(comps));
+      } else if (key == "FIELD") {
+        // In CELL_DATA / POINT_DATA: arrays of one value per cell or point;
+        // before them (dataset level, e.g. TIME): arrays of any length, skipped.
+        const bool dataset_level = attr_count_ == std::uint64_t(-1);
+        in_.word();
+        const std::uint64_t arrays = count("FIELD array count", 1);
+        in_.next_line();
+        for (std::uint64_t a = 0; a < arrays; ++a) {
+          const std::string name = in_.word();
+          if (name == "NULL_ARRAY") continue;
+          const std::uint64_t comps = count("FIELD " + name + " components", 1);
+          const std::uint64_t tuples = count("FIELD " + name + " tuples", 1);
+          const std::string type = in_.word();
+          data_type(type, "FIELD " + name);
+          if (!dataset_level && tuples != attr_count_)
+            in_.fail("FIELD " + name + ": " + std::to_string(tuples) + " tuples; expected " + std::to_string(attr_count_));
+          in_.next_line();
+          array(dataset_level ? "" : name, type, comps, dataset_level ? tuples : attr_count_);
+        }
+      } else if (key == "VECTORS" || key == "NORMALS" || key == "TENSORS" || key == "TENSORS6" ||
+                 key == "GLOBAL_IDS" || key == "PEDIGREE_IDS") {
+        need_attributes(key);
+        const std::string name = in_.word(), type = in_.word();
+        data_type(type, key + " " + name);
+        in_.next_line();
+        const std::uint64_t comps = key == "TENSORS" ? 9 : key == "TENSORS6" ? 6 : key[0] == 'G' || key[0] == 'P' ? 1 : 3;
+        array("", type, comps);
+      } else if (key == "TEXTURE_COORDINATES") {
+        need_attributes(key);
+        const std::string name = in_.word();
+        const std::uint64_t dim = count(key + " dimension", 1);
+        const std::string type = in_.word();
+        data_type(type, key + " " + name);
+        in_.next_line();
+        array("", type, dim);
+      } else if (key == "COLOR_SCALARS") {
+        need_attributes(key);
+        in_.word();
+        const std::uint64_t comps = count(key + " components", 1);
+        in_.next_line();
+        array("", binary_ ? "unsigned_char" : "float", comps);
+      } else if (key == "LOOKUP_TABLE") {
+        in_.word();
+        const std::uint64_t size = count(key + " size", 4);
+        in_.next_line();
+        for (std::uint64_t i = 0; i < 4 * size; ++i) value(binary_ ? "unsigned_char" : "float", key);
+      } else if (key == "METADATA") {
+        // VTK 9's array information: lines up to an empty one.
+        in_.next_line();
+        while (in_.remaining() > 0 && !in_.line().empty()) {
+        }
+      } else {
+        in_.fail("section " + quote(key.substr(0, 40)) +
+                 " is not read; expected POINTS, CELLS, CELL_TYPES, CELL_DATA, POINT_DATA, SCALARS or FIELD");
+      }
+    }
+    if (!have_points) in_.fail("no POINTS section");
+    if (!cells_.begin.empty() && !have_types) in_.fail("CELLS without CELL_TYPES");
+    if (cells_.begin.empty()) cells_.begin.push_back(0);
+    return vtk_cells::to_tets(std::move(points_), cells_, arrays_, where_);
+  }
+
+ private:
+  std::uint64_t count(const std::string& what, std::uint64_t min_bytes) {
+    const long long n = in_.integer(what + " count", 0, std::numeric_limits<int>::max());
+    if (std::uint64_t(n) > in_.remaining() / std::max<std::uint64_t>(1, min_bytes) + 1)
+      in_.fail(what + " count " + std::to_string(n) + " is more than the file holds (truncated or a bad count?)");
+    return std::uint64_t(n);
+  }
+  void data_type(const std::string& t, const std::string& what) {
+    if (legacy_type_size(t) == 0) in_.fail(what + ": data type " + quote(t.substr(0, 40)) + " is not read");
+  }
+  void need_attributes(const std::string& key) {
+    if (attr_count_ == std::uint64_t(-1)) in_.fail(key + " before CELL_DATA or POINT_DATA");
+  }
+  double value(const std::string& type, const std::string& what) {
+    if (!binary_) return in_.number(what);
+    const int n = legacy_type_size(type);
+    if (type == "float" || type == "vtktypefloat32") return in_.f32(true, what);
+    if (type == "double" || type == "vtktypefloat64") return in_.f64(true, what);
+    const bool is_unsigned = type.find("unsigned") != std::string::npos || type.find("uint") != std::string::npos;
+    return is_unsigned ? double(in_.uint(n, true, what)) : double(in_.sint(n, true, what));
+  }
+  // An integer value (cell sizes, indices, types).
+  long long integer(const std::string& type, const std::string& what) {
+    const double v = value(type, what);
+    if (!(std::fabs(v) < 9.0e15) || v != std::floor(v)) in_.fail(what + ": " + format_number(v) + " is not an integer");
+    return (long long)v;
+  }
+  // Attribute data: kept (the first component) under `name` for one-component cell arrays.
+  void array(const std::string& name, const std::string& type, std::uint64_t comps) {
+    array(name, type, comps, attr_count_);
+  }
+  void array(const std::string& name, const std::string& type, std::uint64_t comps, std::uint64_t tuples) {
+    if (comps == 0 || comps > 64) in_.fail(name + ": " + std::to_string(comps) + " components; expected 1 to 64");
+    if (tuples * comps > in_.remaining() + 1)
+      in_.fail(name + ": " + std::to_string(tuples * comps) + " values are more than the file holds (truncated?)");
+    std::vector<double> v;
+    const bool keep = cell_data_ && comps == 1 && !name.empty();
+    if (keep) v.reserve(tuples);
+    for (std::uint64_t i = 0; i < tuples * comps; ++i) {
+      const double x = value(type, name.empty() ? "attribute data" : name);
+      if (keep) v.push_back(x);
+    }
+    if (keep) arrays_[name] = std::move(v);
+  }
+  void cells4() {
+    const std::uint64_t n = count("CELLS", 2), size = count("CELLS size", 1);
+    if (n > size) in_.fail("CELLS " + std::to_string(n) + " " + std::to_string(size) + ": more cells than values");
+    in_.next_line();
+    cells_.begin.assign(1, 0);
+    cells_.conn.reserve(size - n);
+    std::uint64_t used = 0;
+    for (std::uint64_t c = 0; c < n; ++c) {
+      const long long k = integer("int", "CELLS cell " + std::to_string(c) + " size");
+      if (k < 0 || used + 1 + std::uint64_t(k) > size)
+        in_.fail("CELLS cell " + std::to_string(c) + ": " + std::to_string(k) + " vertices; more than the " +
+                 std::to_string(size) + " values the header announces");
+      used += 1 + std::uint64_t(k);
+      for (long long j = 0; j < k; ++j) cells_.conn.push_back(double(integer("int", "CELLS cell " + std::to_string(c))));
+      cells_.begin.push_back(cells_.conn.size());
+    }
+    if (used != size) in_.fail("CELLS: " + std::to_string(used) + " values in the cells; expected " + std::to_string(size));
+  }
+  void cells5() {
+    const std::uint64_t noff = count("CELLS offsets", 1), nconn = count("CELLS connectivity", 1);
+    if (noff == 0) in_.fail("CELLS 0 " + std::to_string(nconn) + "; expected at least one offset");
+    in_.next_line();
+    if (in_.word() != "OFFSETS") in_.fail("CELLS: expected OFFSETS (version 5 files)");
+    std::string type = in_.word();
+    data_type(type, "OFFSETS");
+    in_.next_line();
+    cells_.begin.resize(noff);
+    for (std::uint64_t i = 0; i < noff; ++i) {
+      const long long o = integer(type, "OFFSETS");
+      if (o < 0 || std::uint64_t(o) > nconn || (i > 0 && std::size_t(o) < cells_.begin[i - 1]) || (i == 0 && o != 0))
+        in_.fail("OFFSETS " + std::to_string(i) + ": " + std::to_string(o) +
+                 "; expected non-decreasing offsets from 0 up to the connectivity size " + std::to_string(nconn));
+      cells_.begin[i] = std::size_t(o);
+    }
+    if (cells_.begin.back() != nconn)
+      in_.fail("OFFSETS: the last offset " + std::to_string(cells_.begin.back()) + "; expected " + std::to_string(nconn));
+    if (in_.word() != "CONNECTIVITY") in_.fail("CELLS: expected CONNECTIVITY after the offsets");
+    type = in_.word();
+    data_type(type, "CONNECTIVITY");
+    in_.next_line();
+    cells_.conn.resize(nconn);
+    for (double& v : cells_.conn) v = double(integer(type, "CONNECTIVITY"));
+  }
+
+  scan::Cursor in_;
+  std::string where_;
+  double version_ = 4.2;
+  bool binary_ = false, cell_data_ = false;
+  std::uint64_t attr_count_ = std::uint64_t(-1);
+  std::vector<Vec3> points_;
+  vtk_cells::Cells cells_;
+  std::map<std::string, std::vector<double>> arrays_;
+};
+
+}  // namespace
+
+LabelledTets read_vtk_tets(const std::string& path, WorldFrame* frame) {
+  const std::string where = "read_vtk: " + quote(path);
+  const std::string data = scan::slurp(path, where);
+  WorldFrame fr = WorldFrame::lps;
+  LabelledTets t = LegacyTetReader(data, where).read(fr);
+  if (frame) *frame = fr;
+  return t;
 }
 
 }  // namespace pm

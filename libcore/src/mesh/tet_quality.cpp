@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <sstream>
 #include <unordered_map>
 
@@ -38,6 +39,7 @@ void add(TetStats& s, const std::array<double, 6>& dih, double rr, double vol) {
     ++s.dihedral_hist[std::size_t(std::clamp(int(a / 10), 0, 17))];
   }
   if (lo < 10) ++s.under_10;
+  if (lo >= 25 && *std::max_element(dih.begin(), dih.end()) <= 140) ++s.within_25_140;
   if (!(vol > 0)) ++s.non_positive;
   s.rr_min = std::min(s.rr_min, rr);
   s.rr_mean += rr;  // divided at the end
@@ -57,6 +59,7 @@ Json stats_json(const TetStats& s) {
           {"rr_mean", s.rr_mean},
           {"rr_hist_0.1", r},
           {"share_under_10", s.share_under_10()},
+          {"share_25_140", s.share_25_140()},
           {"non_positive", s.non_positive}};
 }
 
@@ -193,12 +196,13 @@ std::string format_table(const TetQuality& q) {
                     ? "  triangles = boundary + interfaces: yes"
                     : "  triangles = boundary + interfaces: NO");
   o << line;
-  std::snprintf(line, sizeof line, "  %8s %9s %11s %8s %8s %7s %7s %9s\n", "material", "tets", "volume", "dih_min",
-                "dih_max", "rr_min", "rr_mean", "<10deg%");
+  std::snprintf(line, sizeof line, "  %8s %9s %11s %8s %8s %7s %7s %9s %9s\n", "material", "tets", "volume",
+                "dih_min", "dih_max", "rr_min", "rr_mean", "<10deg%", "25-140%");
   o << line;
   auto row = [&](const std::string& name, const TetStats& s) {
-    std::snprintf(line, sizeof line, "  %8s %9zu %11.5g %8.2f %8.2f %7.3f %7.3f %9.2f\n", name.c_str(), s.tets,
-                  s.volume, s.dihedral_min, s.dihedral_max, s.rr_min, s.rr_mean, 100 * s.share_under_10());
+    std::snprintf(line, sizeof line, "  %8s %9zu %11.5g %8.2f %8.2f %7.3f %7.3f %9.2f %9.2f\n", name.c_str(), s.tets,
+                  s.volume, s.dihedral_min, s.dihedral_max, s.rr_min, s.rr_mean, 100 * s.share_under_10(),
+                  100 * s.share_25_140());
     o << line;
   };
   for (const auto& [m, s] : q.materials) row(std::to_string(m), s);
@@ -222,28 +226,28 @@ std::vector<std::string> check_tet_requirements(const TetQuality& q, const std::
       ok = q.has_triangles && q.triangles_missing == 0 && q.triangles_extra == 0;
     } else {
       const std::size_t op = item.find_first_of("<>=");
+      const char* kKeys = "dihedral_min dihedral_max rr_min rr_mean share_under_10 share_25_140";
       if (op == std::string::npos || op == 0)
         throw UsageError("requirement \"" + item +
                          "\" is unknown for a tetrahedral mesh; expected positive, boundary_manifold, triangles_match "
-                         "or KEY>=V, KEY<=V, KEY=V with KEY in min_dihedral max_dihedral rr_min rr_mean "
-                         "share_under_10");
+                         "or KEY>=V, KEY<=V, KEY=V with KEY in " + kKeys);
       const std::string key = item.substr(0, op);
       const std::string cmp = item.substr(op, op + 1 < item.size() && item[op + 1] == '=' ? 2 : 1);
-      double value = 0;
-      try {
-        value = std::stod(item.substr(op + cmp.size()));
-      } catch (const std::exception&) {
-        throw UsageError("requirement \"" + item + "\": expected a number after " + cmp);
-      }
+      const std::string num = item.substr(op + cmp.size());
+      char* end = nullptr;
+      const double value = std::strtod(num.c_str(), &end);
+      if (num.empty() || *end != '\0' || !std::isfinite(value))
+        throw UsageError("requirement \"" + item + "\": expected a number after " + cmp + ", got \"" + num + "\"");
       double have = 0;
-      if (key == "min_dihedral") have = q.overall.dihedral_min;
-      else if (key == "max_dihedral") have = q.overall.dihedral_max;
+      if (key == "dihedral_min" || key == "min_dihedral") have = q.overall.dihedral_min;
+      else if (key == "dihedral_max" || key == "max_dihedral") have = q.overall.dihedral_max;
       else if (key == "rr_min") have = q.overall.rr_min;
       else if (key == "rr_mean") have = q.overall.rr_mean;
       else if (key == "share_under_10") have = q.overall.share_under_10();
+      else if (key == "share_25_140") have = q.overall.share_25_140();
       else
         throw UsageError("requirement \"" + item + "\": unknown key \"" + key +
-                         "\" for a tetrahedral mesh; expected min_dihedral max_dihedral rr_min rr_mean share_under_10");
+                         "\" for a tetrahedral mesh; expected " + kKeys + " (min_dihedral, max_dihedral also read)");
       if (cmp == ">=") ok = have >= value;
       else if (cmp == "<=") ok = have <= value;
       else if (cmp == "=" || cmp == "==") ok = have == value;

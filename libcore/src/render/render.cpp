@@ -554,6 +554,18 @@ double mean_nearest_neighbor_distance(const std::vector<Vec3>& pts) {
 
 Camera render_camera(const Mesh& m, const RenderParams& p) { return setup(m, p).cam; }
 
+ClipPlane clip_plane(const std::vector<Vec3>& points, const RenderParams& p, const Camera& cam) {
+  const auto [axis, frac] = parse_clip(p.clip);
+  Box box;
+  for (const Vec3& v : points)
+    if (is_finite(v)) box.extend(v);
+  ClipPlane c;
+  c.axis = axis;
+  c.position = box.empty() ? 0.0 : box.lo[axis] + frac * (box.hi[axis] - box.lo[axis]);
+  c.removed_side = -cam.forward[axis] >= 0 ? 1.0 : -1.0;  // the camera sits on the + side
+  return c;
+}
+
 Image render(const Mesh& m, const RenderParams& p) {
   const Setup s = setup(m, p);
   const ColorSource cs = color_source(m, p.color_by);
@@ -563,12 +575,8 @@ Image render(const Mesh& m, const RenderParams& p) {
   Frame fb(p.width, p.height);
   if (s.mode == "mesh" && !p.clip.empty()) {
     // Drop the faces on the camera's side of the plane; face properties follow.
-    const auto [axis, frac] = parse_clip(p.clip);
-    Box box;
-    for (const Vec3& v : m.vertices)
-      if (is_finite(v)) box.extend(v);
-    const double plane = box.lo[axis] + frac * (box.hi[axis] - box.lo[axis]);
-    const double toward_camera = -s.cam.forward[axis];  // > 0: the camera sits on the + side
+    const ClipPlane cp = clip_plane(m.vertices, p, s.cam);
+    const int axis = cp.axis;
     Mesh kept;
     kept.vertices = m.vertices;
     kept.normals = m.normals;
@@ -577,7 +585,7 @@ Image render(const Mesh& m, const RenderParams& p) {
     for (std::size_t f = 0; f < m.faces.size(); ++f) {
       const auto& t = m.faces[f];
       const double c = (m.vertices[t[0]][axis] + m.vertices[t[1]][axis] + m.vertices[t[2]][axis]) / 3;
-      if ((c - plane) * (toward_camera >= 0 ? 1 : -1) > 0) continue;
+      if ((c - cp.position) * cp.removed_side > 0) continue;
       kept.faces.push_back(t);
       for (const auto& [name, vals] : m.face_ints) kept.face_ints[name].push_back(vals[f]);
     }

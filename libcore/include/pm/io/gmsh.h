@@ -1,7 +1,8 @@
 #pragma once
 // Gmsh MSH 4.1 ASCII (what Gmsh 4 writes by default, and meshio and
 // FEniCS/dolfinx read): one volume entity and one physical volume group per
-// material, named "material_<label>".
+// material, named "material_<label>"; and a reader of MSH 4.1 and 2.2, ASCII
+// and binary, as Gmsh and meshio write them.
 #include <string>
 
 #include "pm/io/frame.h"
@@ -17,5 +18,22 @@ namespace pm {
 /// \throw InputError when `t` fails validate() or has no tetrahedra; IoError
 /// when the file cannot be written.
 void write_gmsh(const LabelledTets& t, const std::string& path, WorldFrame frame = WorldFrame::lps);
+
+/// Reads MSH 4.1 and 2.2 (ASCII or binary, either byte order): nodes, and
+/// of the elements the tetrahedra (linear; the corners of higher-order ones)
+/// and triangles; points, lines and other surface elements are skipped.
+/// A tetrahedron's material is its physical tag (4.1: the first physical tag
+/// of its entity, the entity tag when the entity has none or there is no
+/// $Entities section; 2.2: the first element tag), or L when that physical
+/// group is named "material_L" (write_gmsh's names). A triangle's label pair
+/// comes from a physical name ending in "_A_B" (e.g. "interface_1_2"), else
+/// it is (0, physical tag). `frame` (when not null) is set from a $Comments
+/// section stating SPACE=RAS / SPACE=LPS (LPS when none). The result may have
+/// no tetrahedra.
+/// \throw IoError when unreadable; InputError for other files (no
+/// $MeshFormat; meshio's ANSYS .msh), other versions, 3-D elements that are not
+/// tetrahedra, node tags that are not defined, and malformed or truncated
+/// content, naming the section, the line and the element.
+LabelledTets read_gmsh(const std::string& path, WorldFrame* frame = nullptr);
 
 }  // namespace pm

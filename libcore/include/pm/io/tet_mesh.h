@@ -7,6 +7,8 @@
 //   .vtu   VTK XML UnstructuredGrid, cell array `material`
 //   .vtk   VTK legacy UNSTRUCTURED_GRID, cell scalars `material`
 //   .msh   Gmsh 4.1 ASCII, one physical volume group per material
+// read_tet_mesh reads the same extensions, including what other tools write
+// there (meshio, Gmsh, ParaView; see each format's reader for the variants).
 #include <array>
 #include <string>
 #include <vector>
@@ -38,6 +40,30 @@ struct TetWriteParams {
 std::string tet_mesh_extensions();
 /// True if write_tet_mesh knows the extension of `path`.
 bool is_tet_mesh_path(const std::string& path);
+
+/// Read a labelled tetrahedral mesh by extension (.mesh .vtu .vtk .msh) into
+/// the LPS frame: a file that states RAS (SPACE=RAS, "frame RAS") has x and y
+/// negated back. Tetrahedra keep the file's vertex order (no reorientation).
+/// Materials: MEDIT references; the VTK cell array `material` (else
+/// `gmsh:physical`, else `medit:ref`; 0 without any); Gmsh physical tags.
+/// Triangles with their label pairs where the file has them (see each reader).
+/// \throw UsageError for another extension; IoError when unreadable;
+/// InputError naming the file and the line, section or element for malformed
+/// or truncated content, and when the file holds no tetrahedra.
+LabelledTets read_tet_mesh(const std::string& path);
+
+/// True when `path` has a tetrahedral extension and holds at least one
+/// tetrahedron; false for other files, surfaces, and files the tetrahedral
+/// reader cannot parse (read_tet_mesh then says why). Reads the whole file
+/// for .vtu .vtk .msh, scans it for .mesh.
+bool file_has_tetrahedra(const std::string& path);
+
+/// Whether read_tet_mesh (rather than a surface reader) is the reader for
+/// `path`: .vtu and .msh always (nothing else here reads them), .mesh and
+/// .vtk when file_has_tetrahedra (else they are surfaces for read_mesh), and
+/// a legacy UNSTRUCTURED_GRID .vtk that neither reader can read (a truncated
+/// tetrahedral file: read_tet_mesh's message names the line).
+bool is_tet_mesh_file(const std::string& path);
 
 /// Write by extension, atomically (temporary file + rename).
 /// \throw UsageError for another extension, InputError when `t` fails

@@ -48,4 +48,18 @@ void write_vtk_tets(const LabelledTets& t, const std::string& path, bool binary 
                     WorldFrame frame = WorldFrame::lps);
 void write_vtu(const LabelledTets& t, const std::string& path, WorldFrame frame = WorldFrame::lps);
 
+/// Reads a legacy UNSTRUCTURED_GRID as a tetrahedral mesh: versions up to 4.2
+/// (CELLS n size) and 5.1 (OFFSETS/CONNECTIVITY, meshio's default), ASCII or
+/// BINARY. Tetrahedra (VTK_TETRA; the corners of VTK_QUADRATIC_TETRA and
+/// VTK_LAGRANGE_TETRAHEDRON) and triangles (likewise) are kept, 0-D to 2-D
+/// cells of other kinds skipped. Material: the cell scalars or FIELD array
+/// `material`, else `gmsh:physical`, else `medit:ref` (0 without any). A
+/// triangle's label pair: cell arrays `label_a` and `label_b` when present,
+/// else (0, its material value). `frame` (when not null) is set from a SPACE=
+/// in the header line (LPS when none). The result may have no tetrahedra.
+/// \throw IoError when unreadable; InputError for other datasets, 3-D cells
+/// other than tetrahedra, non-integral materials, sections we do not know,
+/// malformed or truncated content, naming the section, line and cell.
+LabelledTets read_vtk_tets(const std::string& path, WorldFrame* frame = nullptr);
+
 }  // namespace pm

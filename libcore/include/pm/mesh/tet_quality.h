@@ -21,10 +21,12 @@ struct TetStats {
   double dihedral_min = 180, dihedral_max = 0;  ///< degrees
   double rr_min = 1, rr_mean = 0;
   std::size_t under_10 = 0;             ///< tetrahedra with a dihedral angle below 10°
+  std::size_t within_25_140 = 0;        ///< tetrahedra whose 6 dihedral angles all lie in [25°, 140°]
   std::size_t non_positive = 0;         ///< tetrahedra with volume <= 0 (inverted or flat)
   std::array<std::size_t, 18> dihedral_hist{};  ///< all 6 angles of each tetrahedron, 10° bins
   std::array<std::size_t, 10> rr_hist{};        ///< radius ratio, bins of 0.1
   double share_under_10() const { return tets ? double(under_10) / double(tets) : 0.0; }
+  double share_25_140() const { return tets ? double(within_25_140) / double(tets) : 0.0; }
 };
 
 struct TetQuality {
@@ -55,8 +57,11 @@ Json to_json(const TetQuality& q);
 /// A short table for stderr.
 std::string format_table(const TetQuality& q);
 /// --require items that fail: positive, boundary_manifold, triangles_match,
-/// KEY>=V / KEY<=V / KEY=V with KEY in min_dihedral max_dihedral rr_min
-/// rr_mean share_under_10 (overall). \throw UsageError for an unknown item.
+/// KEY>=V / KEY<=V / KEY=V / KEY>V / KEY<V on the overall numbers, KEY one of
+/// dihedral_min dihedral_max (degrees; also spelt min_dihedral max_dihedral),
+/// rr_min rr_mean, share_under_10 share_25_140 (fractions 0..1). A failed
+/// item comes back with the value found: "dihedral_min>=12 (have 0.06)".
+/// \throw UsageError for an unknown item or a malformed value.
 std::vector<std::string> check_tet_requirements(const TetQuality& q, const std::string& requirements);
 
 }  // namespace pm

@@ -84,6 +84,19 @@ std::vector<double> nearest_neighbor_distances(const std::vector<Vec3>& points, 
 /// than 2 distinct points.
 double mean_nearest_neighbor_distance(const std::vector<Vec3>& points);
 
+/// The plane of params.clip ("x", "y:0.3", ...) through `points`: world
+/// axis (0, 1, 2), position (world units: the fraction along the points'
+/// bounding box) and the side that is left out: +1 when it is the side of
+/// larger coordinates (where the camera looks from), else -1. A point p is
+/// left out when (p[axis] - position) * removed_side > 0.
+/// \pre params.clip is not empty. \throw UsageError for a bad clip.
+struct ClipPlane {
+  int axis = 0;
+  double position = 0;
+  double removed_side = 1;
+};
+ClipPlane clip_plane(const std::vector<Vec3>& points, const RenderParams& params, const Camera& cam);
+
 /// Render m with params. In the point modes normals are taken as oriented
 /// outward (from nx ny nz, else computed from the faces): points facing away
 /// from the camera are culled. Points without normals (and no faces) are drawn
