@@ -188,7 +188,8 @@ int main(int argc, char** argv) {
       pm::run_conform(cr);
       return;
     }
-    for (const char* o : {"--min-dihedral", "--radius-edge", "--max-dihedral", "--optimise", "--no-optimise", "--require"})
+    for (const char* o : {"--min-dihedral", "--radius-edge", "--max-dihedral", "--rounds", "--optimise", "--no-optimise",
+                          "--require"})
       if (tool.app.count(o) > 0) throw pm::UsageError(std::string(o) + " needs --conform");
     if (out.empty()) throw pm::UsageError("--output is required (or --conform with --tets)");
     pm::check_output_path(out, pm::OutputKind::mesh, "--output");

@@ -1,6 +1,7 @@
 #include "pm/cli/conform_tets.h"
 
 #include <cstdio>
+#include <optional>
 #include <stdexcept>
 
 #include "pm/base/error.h"
@@ -14,6 +15,12 @@
 
 namespace pm {
 namespace {
+
+std::string num(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.9g", v);
+  return b;
+}
 
 int parse_outside(const std::string& s, const MaterialSet& ms) {
   if (s == "auto") return auto_outside_label(ms);
@@ -43,7 +50,7 @@ std::vector<std::array<int, 2>> interface_labels(const Mesh& m, const std::strin
 void add_conform_options(CLI::App& app, ConformRun& r) {
   app.add_option("--conform", r.surface,
                  "Conforming mode: the closed surface (one material) or interface mesh (several, face "
-                 "properties label_a < label_b) to keep exactly as the tetrahedra's boundary (.ply .vtk .mesh "
+                 "properties label_a < label_b), world units, to keep exactly as the tetrahedra's boundary (.ply .vtk .mesh "
                  ".obj .off .stl)");
   app.add_option("--min-dihedral", r.params.min_dihedral,
                  "With --conform: quality refinement target, degrees (split tetrahedra with a smaller dihedral "
@@ -59,6 +66,11 @@ void add_conform_options(CLI::App& app, ConformRun& r) {
                  "With --conform: sliver removal works on tetrahedra with a dihedral angle above this, degrees")
       ->capture_default_str()
       ->check(CLI::Range(90.1, 179.9));
+  app.add_option("--rounds", r.params.rounds,
+                 "With --conform: rounds of refinement + sliver removal; a round after the first runs only while "
+                 "a dihedral angle below --min-dihedral is left")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 5));
   app.add_flag("--optimise,!--no-optimise", r.params.optimise,
                "With --conform: sliver removal (TetGen's flips and interior-vertex smoothing; default on)");
   app.add_option("--require", r.require,
@@ -81,6 +93,7 @@ void run_conform(const ConformRun& r) {
   check_conform_options(r);
   auto& st = stats();
   const bool multi = !r.materials.spec.empty();
+  std::optional<ScopedStage> reading("read");
   Mesh surface = read_mesh(r.surface);
   const Mesh points = read_mesh(r.interior);
   std::vector<std::array<int, 2>> labels;
@@ -118,6 +131,7 @@ void run_conform(const ConformRun& r) {
     params["iso"] = iso;
     params["inside"] = below ? "below" : "above";
   }
+  reading.reset();
   st["parameters"] = params;
   if (surface.faces.empty())
     throw InputError(quote(r.surface) + ": no triangles; expected the closed surface or interface mesh to keep");
@@ -133,8 +147,12 @@ void run_conform(const ConformRun& r) {
          " refused by TetGen)");
   if (res.split_vote_regions > 0)
     info(std::to_string(res.split_vote_regions) + " of " + std::to_string(res.regions) +
-         " regions were labelled by a split vote of their tetrahedra");
-  write_tet_mesh(res.mesh, r.tets, {r.frame});
+         " regions were labelled by a split vote of their tetrahedra (the smallest winning share " +
+         num(res.min_vote_share) + " of a region's volume)");
+  {
+    ScopedStage w("write");
+    write_tet_mesh(res.mesh, r.tets, {r.frame});
+  }
   const Json j = to_json(res);
   st["counts"] = j["counts"];
   st["steps"] = j["steps"];

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <map>
 #include <memory>
+#include <optional>
 #include <unordered_map>
 #include <unordered_set>
 
@@ -174,6 +175,8 @@ void check_params(const ConformParams& p) {
                      " degrees; expected a value in (90, 180)");
   if (p.optimise && (p.optimise_level < 1 || p.optimise_level > 9))
     throw UsageError("conforming_tets: optimise level " + std::to_string(p.optimise_level) + "; expected 1 to 9");
+  if (p.rounds < 1 || p.rounds > 5)
+    throw UsageError("conforming_tets: " + std::to_string(p.rounds) + " rounds; expected 1 to 5");
   if (!(p.point_tolerance > 0 && p.point_tolerance < 0.1))
     throw UsageError("conforming_tets: point tolerance " + num(p.point_tolerance) +
                      " (relative to the bounding-box diagonal); expected a value in (0, 0.1)");
@@ -367,6 +370,7 @@ Snapshot snapshot(const tetgenio& out, Registry& reg, const std::string& step, c
 struct Vote {
   std::map<int, int> label;  // region -> material
   std::size_t split = 0;
+  double min_share = 1;  // smallest winning share of a region's volume
 };
 
 Vote vote(const Snapshot& s, const Registry& reg, const std::function<int(const Vec3&)>& label_at) {
@@ -384,6 +388,9 @@ Vote vote(const Snapshot& s, const Registry& reg, const std::function<int(const 
       if (vol > by.at(best)) best = m;
     r.label[region] = best;
     r.split += by.size() > 1;
+    double total = 0;
+    for (const auto& [m, vol] : by) total += vol;
+    if (total > 0) r.min_share = std::min(r.min_share, by.at(best) / total);
   }
   return r;
 }
@@ -438,22 +445,22 @@ double share_25_140(const LabelledTets& lt) {
 
 // The faces where the material changes must be the input triangles, with
 // the label pairs of the materials on their two sides.
-void check_faces(const LabelledTets& lt, const TetQuality& q, int outside, const std::string& step,
-                 const std::string& what) {
+void check_faces(const LabelledTets& lt, const TetQuality& q, int outside, int boundary_vertices,
+                 const std::string& step, const std::string& what) {
   const std::string w = "conforming_tets: " + what + ": step \"" + step + "\": ";
   if (q.triangles_missing || q.triangles_extra)
-    throw InputError(w + std::to_string(q.triangles_extra) +
-                     " input triangles are not faces where the material "
-                     "changes and " +
-                     std::to_string(q.triangles_missing) +
-                     " such faces are no input triangle "
-                     "(two regions on either side of a triangle voted the same material, or label_at disagrees "
+    throw InputError(w + std::to_string(q.triangles_extra) + " input triangles are not faces where the material " +
+                     "changes and " + std::to_string(q.triangles_missing) + " such faces are no input triangle " +
+                     "(two regions on either side of a triangle voted the same material, or label_at disagrees " +
                      "with the triangles); expected the input triangles exactly");
+  // A triangle's corners are boundary vertices, the first ones: only faces
+  // with three of them can be triangles.
   constexpr int kFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
-  std::unordered_map<std::array<int, 3>, std::array<int, 2>, TriHash> sides;  // materials, or INT_MIN
+  std::unordered_map<std::array<int, 3>, std::array<int, 2>, TriHash> sides;  // materials on the two sides
   for (std::size_t t = 0; t < lt.tets.size(); ++t)
     for (const auto& f : kFace) {
-      const auto k = sorted({lt.tets[t][f[0]], lt.tets[t][f[1]], lt.tets[t][f[2]]});
+      const std::array<int, 3> k = sorted({lt.tets[t][f[0]], lt.tets[t][f[1]], lt.tets[t][f[2]]});
+      if (k[2] >= boundary_vertices) continue;
       auto it = sides.find(k);
       if (it == sides.end())
         sides.emplace(k, std::array<int, 2>{lt.materials[t], outside});
@@ -535,6 +542,7 @@ ConformResult conforming_tets(const Mesh& boundary, const std::vector<std::array
                               int outside_label, const ConformParams& p, const std::string& what) {
   check_params(p);
   ConformResult res;
+  std::optional<ScopedStage> checks("conform_checks");
   const Boundary b = check_boundary(boundary, triangle_labels, what);
   res.unused_boundary_vertices = boundary.vertices.size() - b.vertices.size();
   res.self_intersection_untested = check_self_intersections(b, what);
@@ -570,6 +578,7 @@ ConformResult conforming_tets(const Mesh& boundary, const std::vector<std::array
     reg.add(x);
   }
   reg.interior = candidates.size();
+  checks.reset();
 
   // The regions vote once, on the first step; later steps keep TetGen's
   // region numbers (-r carries them).
@@ -580,18 +589,20 @@ ConformResult conforming_tets(const Mesh& boundary, const std::vector<std::array
       v = vote(s, reg, label_at);
       res.regions = v.label.size();
       res.split_vote_regions = v.split;
+      res.min_vote_share = v.min_share;
       for (const auto& [r, m] : v.label) res.dropped_regions += m == outside_label;
       if (res.dropped_regions == res.regions)
         throw InputError("conforming_tets: " + what + ": every region (" + std::to_string(res.regions) +
                          ") is outside (label " + std::to_string(outside_label) +
                          ") by label_at; expected a material inside the surface");
     }
+    ScopedStage stage("conform_measure");
     ConformStep st;
     st.name = name;
     st.seconds = seconds;
     res.mesh = assemble(s, v, outside_label, reg, b, st.steiner_points, name, what);
     st.quality = tet_quality(res.mesh);
-    check_faces(res.mesh, st.quality, outside_label, name, what);
+    check_faces(res.mesh, st.quality, outside_label, int(b.vertices.size()), name, what);
     st.vertices = res.mesh.vertices.size();
     st.tets = res.mesh.tets.size();
     st.share_25_140 = share_25_140(res.mesh);
@@ -651,37 +662,41 @@ ConformResult conforming_tets(const Mesh& boundary, const std::vector<std::array
     run_tetgen(tb, *in, *out, &add, "cdt", what);
     measure("cdt", *out, sw.seconds());
   }
-  // Step 2: quality refinement (Steiner points inside the volume).
-  if (p.min_dihedral > 0) {
+  // Steps 2 and 3, as -r passes on the previous output: quality refinement
+  // (Steiner points inside the volume), then sliver removal (flips,
+  // smoothing, point insertion; boundary vertices stay).
+  auto pass = [&](const std::string& name, bool refine) {
     auto next_in = std::make_unique<tetgenio>();
     reload(*out, *next_in);
     in = std::move(next_in);
     out = std::make_unique<tetgenio>();
     tetgenbehavior tb;
-    parse(tb, ("rYzQq" + num(p.radius_edge) + "/" + num(p.min_dihedral)).c_str());
-    tb.optlevel = 0;
+    if (refine) {
+      parse(tb, ("rYzQq" + num(p.radius_edge) + "/" + num(p.min_dihedral)).c_str());
+      tb.optlevel = 0;
+    } else {
+      parse(tb, "rYzQ");
+      tb.optlevel = p.optimise_level;
+      tb.optscheme = 7;
+      // One bound for TetGen's three: flips aim at angles above it, and
+      // smoothing and point insertion (which its defaults, 179°, keep for
+      // nearly flat tetrahedra) work on the same tetrahedra. Measured on
+      // nested icospheres: max dihedral 145° -> 140°, min 20.7° -> 22.3°.
+      tb.optmaxdihedral = p.max_dihedral;
+      tb.optminsmtdihed = p.max_dihedral;
+      tb.optminslidihed = p.max_dihedral;
+    }
     Stopwatch sw;
-    run_tetgen(tb, *in, *out, nullptr, "refine", what);
-    measure("refine", *out, sw.seconds());
-  }
-  // Step 3: sliver removal (flips, smoothing; boundary vertices stay).
-  if (p.optimise) {
-    auto next_in = std::make_unique<tetgenio>();
-    reload(*out, *next_in);
-    in = std::move(next_in);
-    out = std::make_unique<tetgenio>();
-    tetgenbehavior tb;
-    parse(tb, "rYzQ");
-    tb.optlevel = p.optimise_level;
-    tb.optscheme = 7;
-    // Without -q TetGen aims only at nearly flat tetrahedra (179°); these are
-    // its -q defaults, with our own bound on the largest angle.
-    tb.optmaxdihedral = p.max_dihedral;
-    tb.optminsmtdihed = 179.0;
-    tb.optminslidihed = 179.0;
-    Stopwatch sw;
-    run_tetgen(tb, *in, *out, nullptr, "optimise", what);
-    measure("optimise", *out, sw.seconds());
+    run_tetgen(tb, *in, *out, nullptr, name, what);
+    measure(name, *out, sw.seconds());
+  };
+  for (int round = 1; round <= p.rounds; ++round) {
+    const std::string suffix = round == 1 ? "" : " " + std::to_string(round);
+    // Later rounds only while the previous left an angle below the bound
+    // (the optimisation's inserted points can make a few small ones).
+    if (round > 1 && !(p.min_dihedral > 0 && res.steps.back().quality.overall.dihedral_min < p.min_dihedral)) break;
+    if (p.min_dihedral > 0) pass("refine" + suffix, true);
+    if (p.optimise) pass("optimise" + suffix, false);
   }
   const ConformStep& last = res.steps.back();
   res.steiner_points = last.steiner_points;
@@ -710,7 +725,7 @@ Json to_json(const ConformResult& r) {
             {"steiner_points", r.steiner_points},
             {"regions", r.regions},
             {"dropped_regions", r.dropped_regions},
-            {"split_vote_regions", r.split_vote_regions},
+            {"split_vote_regions", r.split_vote_regions}, {"min_vote_share", r.min_vote_share},
             {"unused_boundary_vertices", r.unused_boundary_vertices},
             {"interior_given", r.interior_given},
             {"interior_kept", r.interior_kept},

@@ -35,10 +35,15 @@ struct ConformParams {
   /// Sliver removal (TetGen -O, level `optimise_level` 1..9, flips + vertex
   /// smoothing + vertex insertion/deletion): TetGen works on every
   /// tetrahedron whose largest dihedral angle exceeds `max_dihedral`
-  /// (degrees, in (90, 180)). Boundary vertices never move.
+  /// (degrees, in (90, 180)); its smoothing and point insertion use the same
+  /// bound. Boundary vertices never move.
   bool optimise = true;
   double max_dihedral = 140;
   int optimise_level = 9;
+  /// Rounds of refinement + sliver removal (1 to 5); a round after the first
+  /// runs only when the previous one left a dihedral angle below
+  /// min_dihedral. Its steps are named "refine 2", "optimise 2", ...
+  int rounds = 2;
   /// Interior points closer than this to a boundary triangle (TetGen would
   /// split the triangle) or to an earlier interior point are dropped
   /// (relative to the boundary's bounding-box diagonal; > 0). Points merely
@@ -48,7 +53,8 @@ struct ConformParams {
   bool progress = true;  ///< one pm::info line per step
 };
 
-/// One measured step: "cdt" (boundary + interior points), "refine", "optimise".
+/// One measured step: "cdt" (boundary + interior points), "refine",
+/// "optimise" (then "refine 2", "optimise 2" when a second round runs).
 struct ConformStep {
   std::string name;
   double seconds = 0;                                      ///< TetGen's pass (wall clock), without the measurement
@@ -69,6 +75,9 @@ struct ConformResult {
   std::size_t regions = 0;                   ///< regions TetGen found between the triangles
   std::size_t dropped_regions = 0;           ///< voted outside_label: not meshed (cavities)
   std::size_t split_vote_regions = 0;        ///< regions whose tetrahedra did not all vote alike
+  /// The smallest share of a region's volume that voted for its label (1 =
+  /// unanimous; near 1 when only tetrahedra at the surface voted otherwise).
+  double min_vote_share = 1;
   std::size_t unused_boundary_vertices = 0;  ///< in no triangle: left out
   std::size_t interior_given = 0, interior_kept = 0;
   std::size_t interior_outside = 0;     ///< label_at gave outside_label
