@@ -157,7 +157,7 @@ TEST(TetConform, BallKeepsItsBoundaryAndVolume) {
   const TetStats& cdt = r.steps[0].quality.overall;
   const TetStats& fin = r.steps[2].quality.overall;
   EXPECT_LT(cdt.dihedral_min, 5.0);
-  EXPECT_GE(fin.dihedral_min, 12.0);  // the requested bound
+  EXPECT_GE(fin.dihedral_min, 12.0);  // the bound (refinement aims at the default 18°; measured 17.5)
   EXPECT_LE(fin.dihedral_max, 160.0);
   EXPECT_GE(r.steps[2].share_25_140, 0.99);
   EXPECT_GT(r.steps[2].share_25_140, r.steps[0].share_25_140);

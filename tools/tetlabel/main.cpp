@@ -129,7 +129,7 @@ int main(int argc, char** argv) {
                 "  tetlabel points.ply --materials labels.nrrd -o interfaces.ply --material-surfaces out/ "
                 "--tets out/volume.mesh\n"
                 "  tetlabel interior.ply --conform surface.ply -i brain_sdf.nrrd --iso 0 --tets volume.vtu "
-                "--min-dihedral 12 --stats volume_quality.json");
+                "--require min_dihedral>=12 --stats volume_quality.json");
   std::string points, out, tets, inside = "auto", outside = "auto", surfaces;
   pm::MaterialOptions mo;
   bool repair = true;

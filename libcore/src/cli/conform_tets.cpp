@@ -54,7 +54,8 @@ void add_conform_options(CLI::App& app, ConformRun& r) {
                  ".obj .off .stl)");
   app.add_option("--min-dihedral", r.params.min_dihedral,
                  "With --conform: quality refinement target, degrees (split tetrahedra with a smaller dihedral "
-                 "angle or a radius-edge ratio above --radius-edge; next to the kept boundary it can be missed); "
+                 "angle or a radius-edge ratio above --radius-edge; next to the kept boundary it can be missed, "
+                 "and sliver removal lowers the smallest angle a little: 18 gave 12.5 on the brain); "
                  "0 = no refinement step")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 59.9));
