@@ -34,8 +34,8 @@ struct ConformParams {
   /// the 12). min_dihedral = 0: no refinement step.
   double min_dihedral = 18;
   double radius_edge = 2.0;  ///< > 1 (TetGen terminates for >= √2 in theory)
-  /// Sliver removal (TetGen -O, level `optimise_level` 1..9, flips + vertex
-  /// smoothing + vertex insertion/deletion): TetGen works on every
+  /// Sliver removal (TetGen -O, level `optimise_level` 1..9, scheme 7: flips,
+  /// smoothing of interior vertices, point insertion): TetGen works on every
   /// tetrahedron whose largest dihedral angle exceeds `max_dihedral`
   /// (degrees, in (90, 180)); its smoothing and point insertion use the same
   /// bound. Boundary vertices never move.
@@ -45,8 +45,8 @@ struct ConformParams {
   /// Rounds of refinement + sliver removal (1 to 5); a round after the first
   /// runs only when the previous one left a dihedral angle below
   /// min_dihedral. Its steps are named "refine 2", "optimise 2", ... On the
-  /// brain a second round took the smallest angle from 8.3° only to 8.8°
-  /// and the largest from 147° to 153°: off by default.
+  /// brain (min_dihedral 12) a second round took the smallest angle from
+  /// 8.3° only to 8.8° and the largest from 147° to 153°: off by default.
   int rounds = 1;
   /// Interior points closer than this to a boundary triangle (TetGen would
   /// split the triangle) or to an earlier interior point are dropped
