@@ -184,6 +184,10 @@ pm_cli_test(tetlabel.no_field "tetlabel: usage error: give exactly one of --inpu
 pm_cli_test(tetlabel.iso_outside "tetlabel: error: .*onevoxel.nrrd.*no surface: the isovalue 7 is outside the value range \\[0, 1\\]" ${TL} ${D}/sphere_points.ply -i ${D}/onevoxel.nrrd --iso 7 -o /tmp/pm_t.ply)
 pm_cli_test(tetlabel.bad_extension "tetlabel: usage error: .*unknown" ${TL} ${D}/sphere_points.ply --implicit sphere -o /tmp/pm_t.xyz)
 pm_cli_test(tetlabel.help_example "Example:.*tetlabel points.ply" ${TL} --help)
+pm_cli_test(tetlabel.conform_help_example "Example:.*tetlabel interior.ply --conform surface.ply" ${TL} --help)
+# Conforming tetrahedra (issue 19): one and two materials in every tetrahedral format (meshio), bad input.
+pm_cli_script(tets.conform tets_test.sh)
+set_tests_properties(cli.tets.conform PROPERTIES TIMEOUT 300)
 # == meshstats
 pm_cli_test(meshstats.missing "meshstats: error: .*nope.ply.*no such file" ${MS} ${D}/nope.ply)
 pm_cli_test(meshstats.no_faces "meshstats: error: .*sphere_points.ply.*no faces; expected a triangle mesh" ${MS} ${D}/sphere_points.ply)

@@ -1,9 +1,12 @@
 // tetlabel: mesh particles by labelled Delaunay tetrahedra (TetGen): every
 // tetrahedron is inside or outside by the field at its circumcentre; the
-// faces between inside and outside form the surface.
+// faces between inside and outside form the surface. With --conform: the
+// conforming tetrahedral mesh of a kept surface plus interior points
+// (pm/cli/conform_tets.h).
 #include "pm/base/error.h"
 #include "pm/base/log.h"
 #include "pm/base/stats.h"
+#include "pm/cli/conform_tets.h"
 #include "pm/cli/field_options.h"
 #include "pm/mesh/meshstats_materials.h"
 #include "pm/mesh/surface_improve.h"
@@ -115,10 +118,18 @@ int main(int argc, char** argv) {
                 "largest indicator at its circumcentre and write the interfaces between materials as one PLY "
                 "with integer face properties label_a < label_b (normal from a into b) and pair, plus each "
                 "material's closed surface (--material-surfaces), sharing its triangles with its neighbours. "
-                "World units throughout.",
+                "With --conform SURFACE (issue 19): the positional points are INTERIOR points and the "
+                "tetrahedra are a constrained Delaunay tetrahedralisation of SURFACE's triangles plus those points, "
+                "then TetGen's quality refinement and sliver removal, each step measured (--stats); the boundary and "
+                "interfaces of the result are exactly SURFACE's vertices and triangles; each region between them "
+                "takes the material the field gives most of its volume (-i/--iso: inside = 1, outside = 0; "
+                "--materials: the material labels, SURFACE then carries label_a/label_b per triangle); written to "
+                "--tets, no -o. World units throughout.",
                 "tetlabel points.ply -i brain_sdf.nrrd --iso 0 -o surface.ply --tets brain.mesh\n"
                 "  tetlabel points.ply --materials labels.nrrd -o interfaces.ply --material-surfaces out/ "
-                "--tets out/volume.mesh");
+                "--tets out/volume.mesh\n"
+                "  tetlabel interior.ply --conform surface.ply -i brain_sdf.nrrd --iso 0 --tets volume.vtu "
+                "--require min_dihedral>=12 --stats volume_quality.json");
   std::string points, out, tets, inside = "auto", outside = "auto", surfaces;
   pm::MaterialOptions mo;
   bool repair = true;
@@ -126,7 +137,7 @@ int main(int argc, char** argv) {
   pm::FieldOptions fo;
   tool.app.add_option("points", points, "Particles (PLY, OFF, OBJ, STL vertices), world units")->required();
   pm::add_field_options(tool.app, fo);
-  tool.app.add_option("-o,--output", out, "Surface mesh to write (.ply .vtp .vtk .mesh .obj .off .stl; label_a/label_b kept by .ply .vtp .vtk and as MEDIT triangle references)")->required();
+  tool.app.add_option("-o,--output", out, "Surface mesh to write (.ply .vtp .vtk .mesh .obj .off .stl; label_a/label_b kept by .ply .vtp .vtk and as MEDIT triangle references); required, except with --conform, which takes none");
   tool.app.add_option("--inside", inside,
                       "Which side is the material: below (F < iso, distance fields), above (F > iso, masks, CT "
                       "intensities) or auto (the side the domain's corners are not on)")
@@ -154,9 +165,33 @@ int main(int argc, char** argv) {
   tool.app.add_option("--material-surfaces", surfaces,
                       "With --materials: write each material's closed surface (all but the outside label) as "
                       "DIR/material_<label>.ply, or to a pattern with %d, e.g. \"out/m%d.off\"");
+  pm::ConformRun cr;
+  pm::add_conform_options(tool.app, cr);
   pm::WorldFrame frame = pm::WorldFrame::lps;
   pm::add_frame_option(tool.app, frame);
   return tool.run(argc, argv, [&] {
+    if (!cr.surface.empty()) {
+      if (!out.empty()) throw pm::UsageError("--conform writes only --tets: drop -o/--output");
+      if (!surfaces.empty() || improve > 0 || tool.app.count("--repair") + tool.app.count("--no-repair") > 0)
+        throw pm::UsageError("--material-surfaces, --improve and --repair do not apply to --conform");
+      if (!mo.spec.empty() && tool.app.count("--inside") > 0) throw pm::UsageError("--inside needs -i/--implicit, not --materials");
+      if (mo.spec.empty() && outside != "auto") throw pm::UsageError("--outside needs --materials");
+      cr.interior = points;
+      cr.tets = tets;
+      cr.field = fo;
+      cr.inside = inside;
+      cr.materials = mo;
+      if (tool.app.count("--kernel") > 0) cr.materials.kernel = fo.kernel;
+      cr.outside = outside;
+      cr.params.progress = pm::verbosity() != pm::Verbosity::quiet;
+      cr.frame = frame;
+      pm::run_conform(cr);
+      return;
+    }
+    for (const char* o : {"--min-dihedral", "--radius-edge", "--max-dihedral", "--rounds", "--optimise", "--no-optimise",
+                          "--require"})
+      if (tool.app.count(o) > 0) throw pm::UsageError(std::string(o) + " needs --conform");
+    if (out.empty()) throw pm::UsageError("--output is required (or --conform with --tets)");
     pm::check_output_path(out, pm::OutputKind::mesh, "--output");
     pm::check_output_path(tets, pm::OutputKind::tet_mesh, "--tets");
     if (surfaces.find("%d") != std::string::npos)

@@ -5,6 +5,7 @@
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Surface_mesh.h>
 
+#include <algorithm>
 #include <iterator>
 
 #include "pm/mesh/meshstats.h"
@@ -35,6 +36,33 @@ int count_self_intersections(const Mesh& m) {
   std::vector<std::pair<int, int>> pairs;
   if (!self_intersecting_faces(m, pairs)) return -1;
   return int(pairs.size());
+}
+
+std::vector<std::pair<int, int>> material_self_intersections(const Mesh& m, const std::vector<int>& materials,
+                                                             std::vector<int>* untested) {
+  std::vector<std::pair<int, int>> all, pairs;
+  const auto& la = m.face_ints.at("label_a");
+  const auto& lb = m.face_ints.at("label_b");
+  for (int L : materials) {
+    Mesh sub;
+    sub.vertices = m.vertices;
+    std::vector<int> back;
+    for (std::size_t f = 0; f < m.faces.size(); ++f) {
+      if (la[f] == L) sub.faces.push_back(m.faces[f]);
+      else if (lb[f] == L) sub.faces.push_back({m.faces[f][0], m.faces[f][2], m.faces[f][1]});
+      else continue;
+      back.push_back(int(f));
+    }
+    if (sub.faces.empty()) continue;
+    if (!self_intersecting_faces(sub, pairs)) {
+      if (untested) untested->push_back(L);
+      continue;
+    }
+    for (const auto& [x, y] : pairs) all.emplace_back(back[std::size_t(x)], back[std::size_t(y)]);
+  }
+  std::sort(all.begin(), all.end());
+  all.erase(std::unique(all.begin(), all.end()), all.end());
+  return all;
 }
 
 }  // namespace pm

@@ -367,34 +367,15 @@ class Improver {
 
 
 // Intersecting face pairs of `m` (indices into m.faces). One surface: the
-// mesh itself. Interfaces: each material's closed surface (faces with
-// label_a = L as they are, label_b = L reversed) in turn; a material whose
-// surface is not a manifold polygon mesh is skipped.
+// mesh itself. Interfaces: each material's closed surface in turn
+// (pm::material_self_intersections; a material whose surface is not a
+// manifold polygon mesh is skipped).
 std::vector<std::pair<int, int>> crossings(const Mesh& m, const std::vector<int>* materials) {
-  std::vector<std::pair<int, int>> all, pairs;
-  if (!materials) {
-    if (!self_intersecting_faces(m, pairs))
-      throw InputError("improve_surface: the improved mesh is not a manifold polygon mesh (internal error)");
-    return pairs;
-  }
-  const auto& la = m.face_ints.at("label_a");
-  const auto& lb = m.face_ints.at("label_b");
-  for (int L : *materials) {
-    Mesh sub;
-    sub.vertices = m.vertices;
-    std::vector<int> back;
-    for (std::size_t f = 0; f < m.faces.size(); ++f) {
-      if (la[f] == L) sub.faces.push_back(m.faces[f]);
-      else if (lb[f] == L) sub.faces.push_back({m.faces[f][0], m.faces[f][2], m.faces[f][1]});
-      else continue;
-      back.push_back(int(f));
-    }
-    if (sub.faces.empty() || !self_intersecting_faces(sub, pairs)) continue;
-    for (const auto& [x, y] : pairs) all.emplace_back(back[std::size_t(x)], back[std::size_t(y)]);
-  }
-  std::sort(all.begin(), all.end());
-  all.erase(std::unique(all.begin(), all.end()), all.end());
-  return all;
+  if (materials) return material_self_intersections(m, *materials);
+  std::vector<std::pair<int, int>> pairs;
+  if (!self_intersecting_faces(m, pairs))
+    throw InputError("improve_surface: the improved mesh is not a manifold polygon mesh (internal error)");
+  return pairs;
 }
 
 // Flips and moves are local tests; where two sheets of the surface are

@@ -58,6 +58,13 @@ void require_volume_spanning(const std::vector<Vec3>& points) {
 
 }  // namespace
 
+std::string tetgen_failure(int code) {
+  static const char* what[] = {"", "out of memory", "internal error", "self-intersection in input",
+                               "small feature in input", "close facets in input", "self-intersection",
+                               "input points are too close"};
+  return code > 0 && code < 8 ? what[code] : "";
+}
+
 TetMesh delaunay(const std::vector<Vec3>& points) {
   require_volume_spanning(points);
   tetgenio in, out;
@@ -72,12 +79,9 @@ TetMesh delaunay(const std::vector<Vec3>& points) {
   try {
     tetrahedralize(switches, &in, &out);
   } catch (int code) {
-    static const char* what[] = {"", "out of memory", "internal error", "self-intersection in input",
-                                 "small feature in input", "close facets in input", "self-intersection",
-                                 "input points are too close"};
     std::ostringstream m;
     m << "delaunay: TetGen failed with code " << code;
-    if (code > 0 && code < 8) m << " (" << what[code] << ")";
+    if (!tetgen_failure(code).empty()) m << " (" << tetgen_failure(code) << ")";
     m << " on " << points.size() << " points";
     throw InputError(m.str());
   }

@@ -79,5 +79,15 @@ int count_self_intersections(const Mesh& m);
 /// The intersecting pairs of non-adjacent triangles as face indices of `m`;
 /// false (and no pairs) when the mesh is not a manifold polygon mesh.
 bool self_intersecting_faces(const Mesh& m, std::vector<std::pair<int, int>>& out);
+/// Intersecting pairs of non-adjacent triangles of an interface mesh (face
+/// properties `label_a`, `label_b`), tested on each material's closed surface
+/// in turn (the faces with label L on one side: L's surface meets itself or
+/// crosses a neighbour there); pairs as sorted, unique face indices of `m`.
+/// A material whose surface is not a manifold polygon mesh (e.g. two parts
+/// touching at a vertex) cannot be tested by CGAL: it is skipped and, when
+/// `untested` is given, appended to it.
+/// \throw std::out_of_range when `m` lacks label_a or label_b.
+std::vector<std::pair<int, int>> material_self_intersections(const Mesh& m, const std::vector<int>& materials,
+                                                             std::vector<int>* untested = nullptr);
 
 }  // namespace pm

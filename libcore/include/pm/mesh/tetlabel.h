@@ -23,6 +23,10 @@ struct TetMesh {
   std::vector<int> labels;                    ///< #T after label_tets
 };
 
+/// What a TetGen failure code (the int TetGen throws) means, e.g. 3 ->
+/// "self-intersection in input"; "" for a code it does not name.
+std::string tetgen_failure(int code);
+
 /// Delaunay tetrahedralisation of `points` (TetGen, switches "zQn").
 /// \throw InputError when there are fewer than 4 points, non-finite points,
 /// all points are coplanar, or TetGen fails (its error code is named).
