@@ -188,6 +188,9 @@ pm_cli_test(tetlabel.conform_help_example "Example:.*tetlabel interior.ply --con
 # Conforming tetrahedra (issue 19): one and two materials in every tetrahedral format (meshio), bad input.
 pm_cli_script(tets.conform tets_test.sh)
 set_tests_properties(cli.tets.conform PROPERTIES TIMEOUT 300)
+# make tets / materials-tets: interior packing + conforming tetrahedra, checked by meshio.
+pm_cli_script(tets.pipeline tets_pipeline_test.sh)
+set_tests_properties(cli.tets.pipeline PROPERTIES TIMEOUT 600)
 # == meshstats
 pm_cli_test(meshstats.missing "meshstats: error: .*nope.ply.*no such file" ${MS} ${D}/nope.ply)
 pm_cli_test(meshstats.no_faces "meshstats: error: .*sphere_points.ply.*no faces; expected a triangle mesh" ${MS} ${D}/sphere_points.ply)

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <map>
 #include <memory>
+#include <set>
 #include <optional>
 #include <unordered_map>
 #include <unordered_set>
@@ -583,9 +584,13 @@ ConformResult conforming_tets(const Mesh& boundary, const std::vector<std::array
   // The regions vote once, on the first step; later steps keep TetGen's
   // region numbers (-r carries them).
   Vote v;
-  auto measure = [&](const std::string& name, const tetgenio& out, double seconds) {
+  bool need_vote = true;
+  std::string pass_suffix;  // " 2", " 3": the passes after removing interior points of bad tetrahedra
+  auto measure = [&](const std::string& step, const tetgenio& out, double seconds) {
+    const std::string name = step + pass_suffix;
     const Snapshot s = snapshot(out, reg, name, what);
-    if (res.steps.empty()) {
+    if (need_vote) {
+      need_vote = false;
       v = vote(s, reg, label_at);
       res.regions = v.label.size();
       res.split_vote_regions = v.split;
@@ -616,92 +621,135 @@ ConformResult conforming_tets(const Mesh& boundary, const std::vector<std::array
     res.steps.push_back(st);
   };
 
-  // Step 1: constrained Delaunay of the triangles plus the interior points.
-  auto in = std::make_unique<tetgenio>();
-  in->firstnumber = 0;
-  in->numberofpoints = int(b.vertices.size());
-  in->pointlist = new REAL[b.vertices.size() * 3];
-  for (std::size_t i = 0; i < b.vertices.size(); ++i) {
-    in->pointlist[3 * i] = b.vertices[i].x;
-    in->pointlist[3 * i + 1] = b.vertices[i].y;
-    in->pointlist[3 * i + 2] = b.vertices[i].z;
-  }
-  in->numberoffacets = int(b.triangles.size());
-  in->facetlist = new tetgenio::facet[b.triangles.size()];
-  in->facetmarkerlist = new int[b.triangles.size()];
-  for (std::size_t f = 0; f < b.triangles.size(); ++f) {
-    tetgenio::facet& fc = in->facetlist[f];
-    fc.numberofpolygons = 1;
-    fc.polygonlist = new tetgenio::polygon[1];
-    fc.numberofholes = 0;
-    fc.holelist = nullptr;
-    fc.polygonlist[0].numberofvertices = 3;
-    fc.polygonlist[0].vertexlist = new int[3];
-    for (int k = 0; k < 3; ++k) fc.polygonlist[0].vertexlist[k] = b.triangles[f][k];
-    in->facetmarkerlist[f] = int(f) + 1;
-  }
-  tetgenio add;
-  add.firstnumber = 0;
-  add.numberofpoints = int(candidates.size());
-  if (!candidates.empty()) {
-    add.pointlist = new REAL[candidates.size() * 3];
-    for (std::size_t i = 0; i < candidates.size(); ++i) {
-      add.pointlist[3 * i] = candidates[i].x;
-      add.pointlist[3 * i + 1] = candidates[i].y;
-      add.pointlist[3 * i + 2] = candidates[i].z;
+  // One meshing: steps 1-3 on the interior points `cand`.
+  auto mesh_once = [&](const std::vector<Vec3>& cand) {
+    need_vote = true;
+    // Step 1: constrained Delaunay of the triangles plus the interior points.
+    auto in = std::make_unique<tetgenio>();
+    in->firstnumber = 0;
+    in->numberofpoints = int(b.vertices.size());
+    in->pointlist = new REAL[b.vertices.size() * 3];
+    for (std::size_t i = 0; i < b.vertices.size(); ++i) {
+      in->pointlist[3 * i] = b.vertices[i].x;
+      in->pointlist[3 * i + 1] = b.vertices[i].y;
+      in->pointlist[3 * i + 2] = b.vertices[i].z;
     }
-  }
-  auto out = std::make_unique<tetgenio>();
-  {
-    // p: PLC, Y: keep the boundary, M: do not merge coplanar triangles (which
-    // would let TetGen re-triangulate them), A: regions, i: interior points.
-    tetgenbehavior tb;
-    parse(tb, candidates.empty() ? "pYMAzQ" : "pYMAzQi");
-    tb.optlevel = 0;  // the plain constrained Delaunay tetrahedralisation
-    Stopwatch sw;
-    run_tetgen(tb, *in, *out, &add, "cdt", what);
-    measure("cdt", *out, sw.seconds());
-  }
-  // Steps 2 and 3, as -r passes on the previous output: quality refinement
-  // (Steiner points inside the volume), then sliver removal (flips,
-  // smoothing, point insertion; boundary vertices stay).
-  auto pass = [&](const std::string& name, bool refine) {
-    auto next_in = std::make_unique<tetgenio>();
-    reload(*out, *next_in);
-    in = std::move(next_in);
-    out = std::make_unique<tetgenio>();
-    tetgenbehavior tb;
-    if (refine) {
-      parse(tb, ("rYzQq" + num(p.radius_edge) + "/" + num(p.min_dihedral)).c_str());
-      tb.optlevel = 0;
-    } else {
-      parse(tb, "rYzQ");
-      tb.optlevel = p.optimise_level;
-      tb.optscheme = 7;
-      // One bound for TetGen's three: flips aim at angles above it, and
-      // smoothing and point insertion (which its defaults, 179°, keep for
-      // nearly flat tetrahedra) work on the same tetrahedra. Measured on
-      // nested icospheres: max dihedral 145° -> 140°, min 20.7° -> 22.3°.
-      tb.optmaxdihedral = p.max_dihedral;
-      tb.optminsmtdihed = p.max_dihedral;
-      tb.optminslidihed = p.max_dihedral;
+    in->numberoffacets = int(b.triangles.size());
+    in->facetlist = new tetgenio::facet[b.triangles.size()];
+    in->facetmarkerlist = new int[b.triangles.size()];
+    for (std::size_t f = 0; f < b.triangles.size(); ++f) {
+      tetgenio::facet& fc = in->facetlist[f];
+      fc.numberofpolygons = 1;
+      fc.polygonlist = new tetgenio::polygon[1];
+      fc.numberofholes = 0;
+      fc.holelist = nullptr;
+      fc.polygonlist[0].numberofvertices = 3;
+      fc.polygonlist[0].vertexlist = new int[3];
+      for (int k = 0; k < 3; ++k) fc.polygonlist[0].vertexlist[k] = b.triangles[f][k];
+      in->facetmarkerlist[f] = int(f) + 1;
     }
-    Stopwatch sw;
-    run_tetgen(tb, *in, *out, nullptr, name, what);
-    measure(name, *out, sw.seconds());
+    tetgenio add;
+    add.firstnumber = 0;
+    add.numberofpoints = int(cand.size());
+    if (!cand.empty()) {
+      add.pointlist = new REAL[cand.size() * 3];
+      for (std::size_t i = 0; i < cand.size(); ++i) {
+        add.pointlist[3 * i] = cand[i].x;
+        add.pointlist[3 * i + 1] = cand[i].y;
+        add.pointlist[3 * i + 2] = cand[i].z;
+      }
+    }
+    auto out = std::make_unique<tetgenio>();
+    {
+      // p: PLC, Y: keep the boundary, M: do not merge coplanar triangles (which
+      // would let TetGen re-triangulate them), A: regions, i: interior points.
+      tetgenbehavior tb;
+      parse(tb, cand.empty() ? "pYMAzQ" : "pYMAzQi");
+      tb.optlevel = 0;  // the plain constrained Delaunay tetrahedralisation
+      Stopwatch sw;
+      run_tetgen(tb, *in, *out, &add, "cdt", what);
+      measure("cdt", *out, sw.seconds());
+    }
+    // Steps 2 and 3, as -r passes on the previous output: quality refinement
+    // (Steiner points inside the volume), then sliver removal (flips,
+    // smoothing, point insertion; boundary vertices stay).
+    auto pass = [&](const std::string& name, bool refine) {
+      auto next_in = std::make_unique<tetgenio>();
+      reload(*out, *next_in);
+      in = std::move(next_in);
+      out = std::make_unique<tetgenio>();
+      tetgenbehavior tb;
+      if (refine) {
+        parse(tb, ("rYzQq" + num(p.radius_edge) + "/" + num(p.min_dihedral)).c_str());
+        tb.optlevel = 0;
+      } else {
+        parse(tb, "rYzQ");
+        tb.optlevel = p.optimise_level;
+        tb.optscheme = 7;
+        // One bound for TetGen's three: flips aim at angles above it, and
+        // smoothing and point insertion (which its defaults, 179°, keep for
+        // nearly flat tetrahedra) work on the same tetrahedra. Measured on
+        // nested icospheres: max dihedral 145° -> 140°, min 20.7° -> 22.3°.
+        tb.optmaxdihedral = p.max_dihedral;
+        tb.optminsmtdihed = p.max_dihedral;
+        tb.optminslidihed = p.max_dihedral;
+      }
+      Stopwatch sw;
+      run_tetgen(tb, *in, *out, nullptr, name, what);
+      measure(name, *out, sw.seconds());
+    };
+    for (int round = 1; round <= p.rounds; ++round) {
+      const std::string suffix = round == 1 ? "" : " " + std::to_string(round);
+      // Later rounds only while the previous left an angle below the bound
+      // (the optimisation's inserted points can make a few small ones).
+      if (round > 1 && !(p.min_dihedral > 0 && res.steps.back().quality.overall.dihedral_min < p.min_dihedral)) break;
+      if (p.min_dihedral > 0) pass("refine" + suffix, true);
+      if (p.optimise) pass("optimise" + suffix, false);
+    }
   };
-  for (int round = 1; round <= p.rounds; ++round) {
-    const std::string suffix = round == 1 ? "" : " " + std::to_string(round);
-    // Later rounds only while the previous left an angle below the bound
-    // (the optimisation's inserted points can make a few small ones).
-    if (round > 1 && !(p.min_dihedral > 0 && res.steps.back().quality.overall.dihedral_min < p.min_dihedral)) break;
-    if (p.min_dihedral > 0) pass("refine" + suffix, true);
-    if (p.optimise) pass("optimise" + suffix, false);
+  // Sliver removal by point removal: TetGen cannot move the boundary (-Y),
+  // so a bad tetrahedron next to it often has an interior point too close to
+  // a boundary triangle. Such interior points go and the volume is meshed
+  // again, up to exude_rounds times (measured on the brain mask's packing:
+  // 8 tetrahedra with an angle under 10 degrees out of 1.5 million after the
+  // first meshing).
+  std::vector<Vec3> cand = candidates;
+  for (int ex = 0;; ++ex) {
+    pass_suffix = ex == 0 ? "" : " " + std::to_string(ex + 1);
+    mesh_once(cand);
+    if (ex >= p.exude_rounds) break;
+    const LabelledTets& m = res.mesh;
+    const std::size_t nb = b.vertices.size();
+    const std::size_t kept = m.vertices.size() - nb - res.steps.back().steiner_points;
+    std::set<std::array<double, 3>> bad;
+    for (const auto& t : m.tets) {
+      const std::array<double, 6> d = tet_dihedrals(m.vertices[std::size_t(t[0])], m.vertices[std::size_t(t[1])],
+                                                    m.vertices[std::size_t(t[2])], m.vertices[std::size_t(t[3])]);
+      const auto [lo, hi] = std::minmax_element(d.begin(), d.end());
+      if (*lo >= p.exude_below && *hi <= p.exude_above) continue;
+      for (int k : t)
+        if (std::size_t(k) >= nb && std::size_t(k) < nb + kept) {
+          const Vec3& x = m.vertices[std::size_t(k)];
+          bad.insert({x.x, x.y, x.z});
+        }
+    }
+    if (bad.empty()) break;
+    std::vector<Vec3> next;
+    next.reserve(cand.size());
+    for (const Vec3& x : cand)
+      if (!bad.count({x.x, x.y, x.z})) next.push_back(x);
+    if (next.size() == cand.size()) break;
+    res.interior_exuded += cand.size() - next.size();
+    if (p.progress)
+      info("conform: " + std::to_string(cand.size() - next.size()) +
+           " interior points of tetrahedra outside [" + num(p.exude_below) + ", " + num(p.exude_above) +
+           "] degrees removed; meshing again");
+    cand.swap(next);
   }
   const ConformStep& last = res.steps.back();
   res.steiner_points = last.steiner_points;
   res.interior_kept = last.vertices - b.vertices.size() - last.steiner_points;
-  res.interior_refused = candidates.size() - res.interior_kept;
+  res.interior_refused = candidates.size() - res.interior_exuded - res.interior_kept;
   return res;
 }
 
@@ -729,6 +777,7 @@ Json to_json(const ConformResult& r) {
             {"unused_boundary_vertices", r.unused_boundary_vertices},
             {"interior_given", r.interior_given},
             {"interior_kept", r.interior_kept},
+            {"interior_exuded", r.interior_exuded},
             {"interior_outside", r.interior_outside},
             {"interior_near_point", r.interior_near_point},
             {"interior_refused", r.interior_refused},

@@ -56,19 +56,24 @@ struct Seeder {
       return;
     }
     if (!known) return;
-    const double a = kSeedSpacing * h;
-    const int k = std::max(1, int(std::lround(edge / a)));
+    // Body-centred cubic: cubes of edge b hold 2 points (density 2 / b³, equal
+    // to the seeds' 1 / (kSeedSpacing h)³ at b = 2^(1/3) kSeedSpacing h); its
+    // Delaunay tetrahedra are the well-shaped Sommerville tetrahedra.
+    const double b = 1.2599210498948732 * kSeedSpacing * h;
+    const int k = std::max(1, int(std::lround(edge / b)));
     const double step = edge / k;
     for (int z = 0; z < k; ++z)
       for (int y = 0; y < k; ++y)
-        for (int x = 0; x < k; ++x) {
-          const Vec3 q = lo + Vec3{x + 0.5, y + 0.5, z + 0.5} * step;
-          if (!field.domain().contains(q) || !(field.value(q) < iso)) continue;
-          double hq = h;
-          size_at(q, hq);
-          out.push_back(q);
-          h_out.push_back(hq);
-        }
+        for (int x = 0; x < k; ++x)
+          for (int half = 0; half < 2; ++half) {
+            const double o = half ? 0.75 : 0.25;
+            const Vec3 q = lo + Vec3{x + o, y + o, z + o} * step;
+            if (!field.domain().contains(q) || !(field.value(q) < iso)) continue;
+            double hq = h;
+            size_at(q, hq);
+            out.push_back(q);
+            h_out.push_back(hq);
+          }
   }
 };
 

@@ -54,6 +54,12 @@ struct ConformParams {
   /// close to the boundary stay and make poor tetrahedra there: keeping
   /// them away is the point packing's job.
   double point_tolerance = 1e-6;
+  /// After meshing, interior points (not boundary vertices or Steiner
+  /// points) of tetrahedra with a dihedral angle below exude_below or above
+  /// exude_above (degrees) are removed and the volume is meshed again, up to
+  /// exude_rounds times (0 = never).
+  int exude_rounds = 2;
+  double exude_below = 12, exude_above = 160;
   bool progress = true;  ///< one pm::info line per step
 };
 
@@ -84,6 +90,7 @@ struct ConformResult {
   double min_vote_share = 1;
   std::size_t unused_boundary_vertices = 0;  ///< in no triangle: left out
   std::size_t interior_given = 0, interior_kept = 0;
+  std::size_t interior_exuded = 0;  ///< interior points removed to mesh again (exude_rounds)
   std::size_t interior_outside = 0;     ///< label_at gave outside_label
   std::size_t interior_near_point = 0;  ///< within the tolerance of a boundary triangle or an earlier point
   std::size_t interior_refused = 0;     ///< not kept by TetGen (outside the surface, on a triangle)
