@@ -248,7 +248,9 @@ TEST(TetConform, StackedCubesKeepCoplanarTriangles) {
   // those triangles, so they are dropped.
   const std::vector<Vec3> inner = {{0.5, 0.5, 0.5}, {0.5, 0.5, 1.5}, {0.3, 0.6, 0.4}, {0.3, 0.6, 1.0},
                                    {0.4, 1e-9, 1.2}};
-  const ConformResult r = conforming_tets(s.m, s.labels, inner, label, 0, quiet());
+  ConformParams p = quiet();
+  p.exude_rounds = 0;  // keep every point this test places
+  const ConformResult r = conforming_tets(s.m, s.labels, inner, label, 0, p);
   EXPECT_EQ(r.interior_near_point, 2u);
   EXPECT_EQ(r.interior_kept, 3u);
   EXPECT_EQ(r.regions, 2u);
@@ -342,12 +344,45 @@ TEST(TetConform, StepsCanBeSwitchedOff) {
   ConformParams p = quiet();
   p.min_dihedral = 0;
   p.optimise = false;
+  p.exude_rounds = 0;
   const ConformResult r = conforming_tets(s, pairs(s.faces.size(), 0, 1), bcc_ball(1, 0.2, 0.14), ball_label, 0, p);
   ASSERT_EQ(r.steps.size(), 1u);
   EXPECT_EQ(r.steps[0].name, "cdt");
   EXPECT_EQ(r.steiner_points, 0u);  // a plain constrained Delaunay of a convex polyhedron needs none
   const double exact = enclosed_volume(s);
   EXPECT_NEAR(tets_volume(r.mesh), exact, 1e-9 * exact);
+}
+
+}  // namespace
+}  // namespace pm
+
+namespace pm {
+namespace {
+
+TEST(TetConform, InteriorPointsOfSliversAreRemovedAndMeshedAgain) {
+  // An interior point 1e-3 inside a boundary triangle's centroid makes a flat
+  // tetrahedron on that triangle (the boundary cannot change). Removing the
+  // interior points of tetrahedra outside [12, 160] degrees and meshing
+  // again takes it away.
+  const Mesh s = icosphere(2, 1.0);
+  const auto& f = s.faces[0];
+  const Vec3 c = (s.vertices[std::size_t(f[0])] + s.vertices[std::size_t(f[1])] + s.vertices[std::size_t(f[2])]) / 3.0;
+  std::vector<Vec3> inner = bcc_ball(1, 0.2, 0.14);
+  inner.push_back(c * (1 - 1e-3 / norm(c)));
+  ConformParams p = quiet();
+  p.min_dihedral = 0;
+  p.optimise = false;
+  p.exude_rounds = 0;
+  const ConformResult kept = conforming_tets(s, pairs(s.faces.size(), 0, 1), inner, ball_label, 0, p);
+  ASSERT_LT(kept.steps.back().quality.overall.dihedral_min, 12.0);
+  p.exude_rounds = 2;
+  const ConformResult r = conforming_tets(s, pairs(s.faces.size(), 0, 1), inner, ball_label, 0, p);
+  EXPECT_GE(r.interior_exuded, 1u);
+  ASSERT_GE(r.steps.size(), 2u);
+  EXPECT_EQ(r.steps[1].name, "cdt 2");
+  for (const Vec3& v : r.mesh.vertices) EXPECT_GT(norm(v - inner.back()), 1e-12);
+  EXPECT_GT(r.steps.back().quality.overall.dihedral_min, kept.steps.back().quality.overall.dihedral_min);
+  EXPECT_EQ(r.mesh.triangles, s.faces);  // the boundary is untouched
 }
 
 }  // namespace

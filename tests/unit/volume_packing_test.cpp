@@ -95,11 +95,14 @@ TEST(VolumePacking, FillsABallInsideItsFixedBoundary) {
   nn /= double(deep);
   EXPECT_GT(nn, 0.7 * s);
   EXPECT_LT(nn, 1.3 * s);
-  // A close packing at nearest distance nn has √2 / nn³ points per volume:
-  // the deep ball r < R − 2s holds that share within a factor 1.5.
+  // A close packing at nearest distance nn has √2 / nn³ points per volume
+  // (the densest; body-centred cubic, where the seeds start, 1.30 / nn³, a
+  // loose random packing about 0.74 of the densest, and the mean nearest
+  // distance exceeds the typical one): the deep ball r < R − 2s holds that
+  // share within a factor 2.
   const double rd = R - 2 * s, est = 4.0 / 3 * kPi * rd * rd * rd * std::sqrt(2.0) / (nn * nn * nn);
-  EXPECT_GT(double(deep), est / 1.5);
-  EXPECT_LT(double(deep), est * 1.5);
+  EXPECT_GT(double(deep), est / 2);
+  EXPECT_LT(double(deep), est * 1.2);
 }
 
 TEST(VolumePacking, SameBytesForAnyThreadCount) {

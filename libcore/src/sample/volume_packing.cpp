@@ -47,7 +47,13 @@ struct Seeder {
     if (!std::isfinite(f)) return;
     const double gn = norm(g);
     const double half_diag = 0.8660254037844386 * edge;
-    if (f >= iso && (gn > 0 ? (f - iso) / gn : 0.0) > half_diag) return;  // whole cube outside
+    // Whole cube outside when F - iso exceeds a slope bound times the half
+    // diagonal. The bound is max(2, 2 |∇F(centre)|): 2 holds for distance
+    // fields and the material regions (a difference of two distances), whose
+    // gradient can vanish at a centre (a ball's middle) while F still drops
+    // at the full rate a little away; twice the centre's slope covers steeper
+    // fields that vary smoothly across the cube.
+    if (f >= iso && f - iso > std::max(2.0, 2 * gn) * half_diag) return;
     const double want = known ? h : edge;
     if (depth < kMaxOctreeDepth && (edge > 2 * want || (f >= iso && edge > want))) {
       const double e2 = edge / 2;
@@ -135,6 +141,8 @@ VolumePackResult pack_volume(const ScalarField& field, double iso, const std::ve
     radius.push_back(p.seed_clearance * seed_h[i]);
   }
   const std::vector<std::size_t> keep = thin_points(all, radius, {});
+  debug("volume packing, material " + std::to_string(label) + ": " + std::to_string(seeds.size()) +
+        " lattice points, " + std::to_string(keep.size() - fixed.size()) + " after thinning");
 
   VolumeConstraint vc(field, iso);
   EngineParams ep;
