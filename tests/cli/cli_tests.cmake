@@ -65,6 +65,12 @@ pm_cli_test(particles.nan_seed "particles: error: seed point 1 is not finite: \\
 pm_cli_test(particles.not_converged "particles: warning: not converged after 2 iterations" ${PT} --implicit sphere --spacing 0.3 --max-iters 2 -o /tmp/pm_p.ply)
 pm_cli_test(particles.bad_kernel "particles: usage error: --kernel: cubic not in" ${PT} -i ${PTD}/onevoxel.nrrd --iso 0.1 --spacing 0.3 --kernel cubic -o /tmp/pm_p.ply)
 pm_cli_test(particles.bad_output "particles: usage error: --output .*pm_p.xyz.*: unknown point set extension \".xyz\"; expected one of .ply .vtp .vtk" ${PT} --implicit sphere --spacing 0.3 -o /tmp/pm_p.xyz)
+# Volume packing (issue 19): --fixed is required, exactly one region source, files named.
+pm_cli_test(particles.volume_needs_fixed "particles: usage error: --volume needs --fixed SURFACE" ${PT} --volume --implicit sphere --spacing 0.3 -o /tmp/pm_pv.ply)
+pm_cli_test(particles.volume_fixed_missing "particles: error: .*nope.ply.*no such file" ${PT} --volume --implicit sphere --spacing 0.3 --fixed ${D}/nope.ply -o /tmp/pm_pv.ply)
+pm_cli_test(particles.volume_needs_size "particles: usage error: --volume needs --sizing H or --spacing S" ${PT} --volume --implicit sphere --fixed ${D}/sphere_points.ply -o /tmp/pm_pv.ply)
+pm_cli_test(particles.fixed_needs_volume "particles: usage error: --materials and --fixed need --volume" ${PT} --implicit sphere --spacing 0.3 --fixed ${D}/sphere_points.ply -o /tmp/pm_pv.ply)
+pm_cli_test(particles.volume_no_faces_labels "particles: error: .*sphere_points.ply.* has no face properties label_a and label_b" ${PT} --volume --materials ${D}/wedges3.nrrd --spacing 0.3 --fixed ${D}/sphere_points.ply -o /tmp/pm_pv.ply)
 pm_cli_test(particles.sizing_and_spacing "particles: usage error: give --spacing or --sizing, not both" ${PT} --implicit sphere --spacing 0.3 --sizing ${PTD}/onevoxel.nrrd -o /tmp/pm_p.ply)
 pm_cli_script(particles.workflow particles_test.sh)
 # Chapter 4: particles --field on the shared Nektar++ fields (77 = skipped without ../shared/data)
@@ -116,6 +122,10 @@ pm_cli_test(gradlimit.zero_delta "gradlimit: usage error: --delta 0; expected > 
 pm_cli_test(gradlimit.negative_delta "gradlimit: usage error: --delta -0.3; expected > 0" ${GL} ${D}/onevoxel.nrrd /tmp/pm_gl_x.nrrd --delta -0.3)
 pm_cli_test(gradlimit.label_map "gradlimit: error: .*mickey.nrrd.*voxel type uint16 is an integer type \\(a label map\\?\\); expected a float sizing field" ${GL} ${DATA}/cleaver-mickey/mickey.nrrd /tmp/pm_gl_x.nrrd)
 pm_cli_test(gradlimit.nan "gradlimit: error: .*nan.nrrd.*voxel \\(0,1,0\\) is nan; expected finite values \\(h <= 0 marks unknown voxels\\)" ${GL} ${D}/nan.nrrd /tmp/pm_gl_x.nrrd)
+# Interior sizing (issue 19): bad --inward surface, non-positive cap, cap without --inward.
+pm_cli_test(gradlimit.inward_missing "gradlimit: error: .*nope.ply.*no such file" ${GL} ${D}/onevoxel.nrrd /tmp/pm_gl_x.nrrd --inward ${D}/nope.ply)
+pm_cli_test(gradlimit.max_size_zero "gradlimit: usage error: --max-size 0.*expected > 0" ${GL} ${D}/onevoxel.nrrd /tmp/pm_gl_x.nrrd --inward ${D}/sphere_points.ply --max-size 0)
+pm_cli_test(gradlimit.max_size_needs_inward "gradlimit: usage error: --band and --max-size need --inward" ${GL} ${D}/onevoxel.nrrd /tmp/pm_gl_x.nrrd --max-size 3)
 pm_cli_test(gradlimit.all_unknown "gradlimit: error: .*zeros.nrrd.*no voxel has a finite h > 0" ${GL} ${D}/zeros.nrrd /tmp/pm_gl_x.nrrd)
 pm_cli_test(gradlimit.bad_method "gradlimit: usage error: --method \"fast\"; expected propagate or upwind" ${GL} ${D}/onevoxel.nrrd /tmp/pm_gl_x.nrrd --method fast)
 pm_cli_test(gradlimit.bad_extension "gradlimit: usage error: .*unknown volume extension" ${GL} ${D}/onevoxel.nrrd /tmp/pm_gl_x.txt)
