@@ -13,42 +13,12 @@
 
 #include "pm/base/error.h"
 #include "pm/mesh/meshstats.h"
+#include "test_meshes.h"
 
 namespace pm {
 namespace {
 
-// Icosahedron subdivided `levels` times, vertices on the sphere of radius r
-// around c: 10·4^n + 2 vertices, 20·4^n triangles, outward oriented.
-Mesh icosphere(int levels, double r, Vec3 c = {0, 0, 0}) {
-  const double t = (1 + std::sqrt(5.0)) / 2;
-  Mesh m;
-  m.vertices = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
-                {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
-  m.faces = {{0, 11, 5},  {0, 5, 1},  {0, 1, 7},  {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
-             {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
-             {3, 8, 9},   {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
-  for (int l = 0; l < levels; ++l) {
-    std::map<std::pair<int, int>, int> mid;
-    auto middle = [&](int a, int b) {
-      const auto k = std::minmax(a, b);
-      const auto it = mid.find(k);
-      if (it != mid.end()) return it->second;
-      m.vertices.push_back((m.vertices[std::size_t(a)] + m.vertices[std::size_t(b)]) * 0.5);
-      return mid[k] = int(m.vertices.size()) - 1;
-    };
-    std::vector<std::array<int, 3>> next;
-    for (const auto& f : m.faces) {
-      const int a = middle(f[0], f[1]), b = middle(f[1], f[2]), d = middle(f[2], f[0]);
-      next.push_back({f[0], a, d});
-      next.push_back({f[1], b, a});
-      next.push_back({f[2], d, b});
-      next.push_back({a, b, d});
-    }
-    m.faces = next;
-  }
-  for (Vec3& v : m.vertices) v = c + normalized(v) * r;
-  return m;
-}
+using testing::icosphere;
 
 // Signed volume enclosed by outward triangles (divergence theorem).
 double enclosed_volume(const Mesh& m) {
