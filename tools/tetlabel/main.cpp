@@ -52,17 +52,7 @@ void run_materials(pm::Mesh pts, const std::string& points, const pm::MaterialOp
   const pm::MaterialSet ms = pm::load_materials(mo);
   pm::MaterialMeshParams mp;
   mp.repair = repair;
-  if (outside_opt == "auto") {
-    mp.outside_label = pm::auto_outside_label(ms);
-  } else {
-    try {
-      std::size_t pos = 0;
-      mp.outside_label = std::stoi(outside_opt, &pos);
-      if (pos != outside_opt.size()) throw std::invalid_argument("");
-    } catch (const std::exception&) {
-      throw pm::UsageError("--outside \"" + outside_opt + "\" is not an integer label or auto");
-    }
-  }
+  mp.outside_label = pm::parse_outside_label(outside_opt, ms);
   pm::MaterialStageParams sp;
   sp.outside_label = mp.outside_label;
   sp.repair = repair;

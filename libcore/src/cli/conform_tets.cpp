@@ -22,17 +22,6 @@ std::string num(double v) {
   return b;
 }
 
-int parse_outside(const std::string& s, const MaterialSet& ms) {
-  if (s == "auto") return auto_outside_label(ms);
-  try {
-    std::size_t pos = 0;
-    const int v = std::stoi(s, &pos);
-    if (pos == s.size()) return v;
-  } catch (const std::exception&) {
-  }
-  throw UsageError("--outside \"" + s + "\" is not an integer label or auto");
-}
-
 // The interface mesh's per-triangle label pairs (face properties label_a, label_b).
 std::vector<std::array<int, 2>> interface_labels(const Mesh& m, const std::string& path) {
   const auto a = m.face_ints.find("label_a"), b = m.face_ints.find("label_b");
@@ -111,7 +100,7 @@ void run_conform(const ConformRun& r) {
     st["inputs"] = {r.interior, r.surface, r.materials.spec};
     labels = interface_labels(surface, r.surface);
     ms = load_materials(r.materials);
-    outside = parse_outside(r.outside, ms);
+    outside = parse_outside_label(r.outside, ms);
     const Box dom = ms.domain();
     label_at = [&ms, dom, outside](const Vec3& x) { return dom.contains(x) ? ms.label_at(x) : outside; };
     params["materials"] = r.materials.spec;

@@ -1,6 +1,7 @@
 #include "pm/cli/material_options.h"
 
 #include "pm/base/error.h"
+#include "pm/mesh/tetlabel_materials.h"
 
 namespace pm {
 
@@ -32,6 +33,17 @@ Kernel parse_kernel(const std::string& name) {
 MaterialSet load_materials(const MaterialOptions& o) {
   if (o.spec.empty()) throw UsageError("--materials is empty; expected a label map or \"L1=a.nrrd,L2=b.nrrd,...\"");
   return load_materials(o.spec, parse_kernel(o.kernel));
+}
+
+int parse_outside_label(const std::string& s, const MaterialSet& ms) {
+  if (s == "auto") return auto_outside_label(ms);
+  try {
+    std::size_t pos = 0;
+    const int v = std::stoi(s, &pos);
+    if (pos == s.size()) return v;
+  } catch (const std::exception&) {
+  }
+  throw UsageError("--outside \"" + s + "\" is not an integer label or auto");
 }
 
 }  // namespace pm

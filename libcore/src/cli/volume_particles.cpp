@@ -11,21 +11,6 @@
 #include "pm/mesh/tetlabel_materials.h"
 
 namespace pm {
-namespace {
-
-int parse_outside(const std::string& s, const MaterialSet& ms) {
-  if (s == "auto") return auto_outside_label(ms);
-  try {
-    std::size_t pos = 0;
-    const int v = std::stoi(s, &pos);
-    if (pos == s.size()) return v;
-  } catch (const std::exception&) {
-  }
-  throw UsageError("--outside \"" + s + "\" is not an integer label or auto");
-}
-
-}  // namespace
-
 void run_volume(VolumeRun run) {
   if (run.fixed.empty()) throw UsageError("--volume needs --fixed SURFACE (the final surface or interface mesh)");
   if ((run.field != nullptr) == (run.materials != nullptr))
@@ -48,7 +33,7 @@ void run_volume(VolumeRun run) {
       r = pack_volume(*run.field, run.iso, boundary.vertices, run.params, 1);
     } else {
       const MaterialSet ms = load_materials(*run.materials);
-      outside = parse_outside(run.outside, ms);
+      outside = parse_outside_label(run.outside, ms);
       const auto la = boundary.face_ints.find("label_a"), lb = boundary.face_ints.find("label_b");
       if (la == boundary.face_ints.end() || lb == boundary.face_ints.end())
         throw InputError(quote(run.fixed) +

@@ -138,6 +138,18 @@ std::vector<std::size_t> thin_points(const std::vector<Vec3>& x, const std::vect
   return kept;
 }
 
+void add_update_counters(EngineStats& into, const EngineStats& from) {
+  into.updates += from.updates;
+  into.trials += from.trials;
+  into.rejected += from.rejected;
+  into.settled_skips += from.settled_skips;
+  into.field_evaluations += from.field_evaluations;
+  into.place_failures += from.place_failures;
+  into.trial_failures += from.trial_failures;
+  into.stuck += from.stuck;
+  for (int k = 0; k < int(ProjectFailure::count_); ++k) into.failures_by_reason[k] += from.failures_by_reason[k];
+}
+
 void set_quad_types(EngineParams& p) {
   p.types = 2;
   for (int a = 0; a < kMaxTypes; ++a)

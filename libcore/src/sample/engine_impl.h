@@ -77,15 +77,7 @@ std::size_t ParticleEngine<C>::active_count() const {
 
 template <class C>
 void ParticleEngine<C>::merge(const EngineStats& l) {
-  st_.updates += l.updates;
-  st_.trials += l.trials;
-  st_.rejected += l.rejected;
-  st_.settled_skips += l.settled_skips;
-  st_.field_evaluations += l.field_evaluations;
-  st_.place_failures += l.place_failures;
-  st_.trial_failures += l.trial_failures;
-  st_.stuck += l.stuck;
-  for (int k = 0; k < int(ProjectFailure::count_); ++k) st_.failures_by_reason[k] += l.failures_by_reason[k];
+  add_update_counters(st_, l);
 }
 
 template <class C>

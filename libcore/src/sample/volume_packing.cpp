@@ -84,16 +84,8 @@ struct Seeder {
 };
 
 void add_stats(EngineStats& a, const EngineStats& b) {
-  a.updates += b.updates;
-  a.trials += b.trials;
-  a.rejected += b.rejected;
-  a.settled_skips += b.settled_skips;
-  a.field_evaluations += b.field_evaluations;
+  add_update_counters(a, b);
   a.list_builds += b.list_builds;
-  a.place_failures += b.place_failures;
-  a.trial_failures += b.trial_failures;
-  for (int k = 0; k < int(ProjectFailure::count_); ++k) a.failures_by_reason[k] += b.failures_by_reason[k];
-  a.stuck += b.stuck;
   if (a.first_failure.empty()) a.first_failure = b.first_failure;
   a.seconds_relax += b.seconds_relax;
   a.seconds_population += b.seconds_population;

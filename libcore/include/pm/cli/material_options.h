@@ -24,6 +24,10 @@ CLI::Option* add_material_options(CLI::App& app, MaterialOptions& o, bool requir
 /// Parse the kernel name. \throw UsageError for an unknown one.
 Kernel parse_kernel(const std::string& name);
 
+/// --outside: "auto" (pm::auto_outside_label, the material touching the
+/// volume's border) or an integer label. \throw UsageError otherwise.
+int parse_outside_label(const std::string& s, const MaterialSet& ms);
+
 /// load_materials(o.spec, parse_kernel(o.kernel)).
 /// \throw UsageError when the spec is empty, plus whatever load_materials throws.
 MaterialSet load_materials(const MaterialOptions& o);

@@ -185,6 +185,11 @@ struct EngineStats {
   double seconds_population = 0;
 };
 
+/// Add the per-update counters of `from` (updates, trials, rejected,
+/// settled skips, field evaluations, place and trial failures, stuck,
+/// failures by reason) to `into`.
+void add_update_counters(EngineStats& into, const EngineStats& from);
+
 /// The counters as a JSON object for --stats (updates, trials,
 /// rejected_trials, field_evaluations, updates_per_second, ...).
 Json engine_stats_json(const EngineStats& s);
