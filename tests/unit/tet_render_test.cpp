@@ -6,6 +6,7 @@
 #include "pm/base/error.h"
 #include "pm/render/tet_render.h"
 #include "tet_fixtures.h"
+#include "test_images.h"
 
 namespace pm {
 namespace {
@@ -16,19 +17,7 @@ LabelledTets three_materials() {
   return test::tet_box(8, 4, 4, 0.25, [](const Vec3& c) { return c.x > 1.5 ? 3 : c.y < 0.5 ? 1 : 2; });
 }
 
-// Pixels (outside the top-left legend corner) whose colour is a shade k * c of c.
-std::size_t pixels_of_shade(const Image& img, const Vec3& c) {
-  std::size_t n = 0;
-  for (int y = 0; y < img.height; ++y)
-    for (int x = 0; x < img.width; ++x) {
-      if (x < 80 && y < 40) continue;
-      const std::uint8_t* p = img.at(x, y);
-      const Vec3 v{p[0] / 255.0, p[1] / 255.0, p[2] / 255.0};
-      const double k = dot(v, c) / dot(c, c);
-      n += k > 0.2 && norm(v - c * k) < 0.02;
-    }
-  return n;
-}
+using testing::pixels_of_shade;
 
 TEST(TetRender, WithoutClipTheBoundaryIsDrawn) {
   const LabelledTets t = three_materials();

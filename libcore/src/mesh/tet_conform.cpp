@@ -70,6 +70,17 @@ PointKey key_of(const double* x) {
   return k;
 }
 
+// Cubes of edge w for the two hashed grids below.
+using Cell = std::array<long, 3>;
+struct CellHash {
+  std::size_t operator()(const Cell& c) const {
+    return std::size_t((c[0] * 73856093L) ^ (c[1] * 19349663L) ^ (c[2] * 83492791L));
+  }
+};
+Cell cell_of(const Vec3& x, double w) {
+  return {long(std::floor(x.x / w)), long(std::floor(x.y / w)), long(std::floor(x.z / w))};
+}
+
 // Points by cell of side `h`, for "is any point within h of x?".
 class PointGrid {
  public:
@@ -89,15 +100,7 @@ class PointGrid {
   }
 
  private:
-  using Cell = std::array<long, 3>;
-  struct CellHash {
-    std::size_t operator()(const Cell& c) const {
-      return std::size_t((c[0] * 73856093L) ^ (c[1] * 19349663L) ^ (c[2] * 83492791L));
-    }
-  };
-  Cell cell(const Vec3& x) const {
-    return {long(std::floor(x.x / h_)), long(std::floor(x.y / h_)), long(std::floor(x.z / h_))};
-  }
+  Cell cell(const Vec3& x) const { return cell_of(x, h_); }
   double h_;
   std::unordered_map<Cell, std::vector<Vec3>, CellHash> cells_;
 };
@@ -150,15 +153,7 @@ class TriangleGrid {
   }
 
  private:
-  using Cell = std::array<long, 3>;
-  struct CellHash {
-    std::size_t operator()(const Cell& c) const {
-      return std::size_t((c[0] * 73856093L) ^ (c[1] * 19349663L) ^ (c[2] * 83492791L));
-    }
-  };
-  Cell key(const Vec3& x) const {
-    return {long(std::floor(x.x / cell_)), long(std::floor(x.y / cell_)), long(std::floor(x.z / cell_))};
-  }
+  Cell key(const Vec3& x) const { return cell_of(x, cell_); }
   const std::vector<Vec3>& v_;
   const std::vector<std::array<int, 3>>& t_;
   double cell_, h_;
