@@ -13,8 +13,16 @@
 #include "pm/mesh/tetlabel.h"
 #include "pm/cli/frame_option.h"
 #include "pm/io/output_path.h"
+#include "pm/io/tet_mesh.h"
+#include "pm/mesh/tet_quality.h"
 
 namespace {
+
+// --tets with --vertices: the facet size search scales as N^-0.4 (volumes
+// graded from the surface), starting where the surface would hold a third
+// of the vertices (brain, radius-edge 2: about 35% on the surface).
+constexpr double kVolumeExponent = 0.4;
+constexpr std::size_t kVolumeShare = 3;
 
 // The size search's record in the stats, and a warning when it missed.
 pm::CgalMeshResult record(pm::SizeSearchResult r, const pm::SizeSearchParams& sp, pm::Json& st) {
@@ -29,6 +37,7 @@ pm::CgalMeshResult record(pm::SizeSearchResult r, const pm::SizeSearchParams& sp
                std::to_string(int(std::lround(100 * r.deviation))) + "% off the target " + std::to_string(sp.target));
   }
   st["counts"]["c3t3_vertices"] = r.best.c3t3_vertices;
+  if (!r.best.steps.empty()) st["steps"] = pm::to_json(r.best.steps);
   st["counts"]["parallel"] = r.best.parallel;
   st["seconds_final_run"] = r.best.seconds;
   return std::move(r.best);
@@ -43,8 +52,12 @@ int main(int argc, char** argv) {
                 "surface mesh of the image isosurface (facet angle 30, facet distance = size/4, manifold), with the "
                 "facet size given or searched so the vertex count matches --vertices. cgal-labels: CGAL Mesh_3 on a "
                 "label map with the lines where three labels meet protected; writes every interface with face "
-                "properties label_a < label_b (0 = outside). Outputs are closed triangle meshes (.ply .obj .off .stl).",
-                "baseline cgal -i brain_sdf.nrrd --iso 0 --vertices 100000 -o cgal.ply --stats cgal.json");
+                "properties label_a < label_b (0 = outside). Outputs are closed triangle meshes (.ply .obj .off .stl). "
+                "With --tets, the cgal modes mesh the volume too (cell radius-edge ratio, optional cell size), then "
+                "run CGAL's sliver perturbation and exudation, and write the labelled tetrahedra; --vertices then "
+                "counts the tetrahedra's vertices.",
+                "baseline cgal -i brain_sdf.nrrd --iso 0 --vertices 100000 -o cgal.ply --stats cgal.json\n"
+                "  baseline cgal-labels -i labels.nrrd --vertices 200000 --tets cgal_volume.mesh --stats cgal.json");
   std::string mode, out, inside = "auto";
   pm::FieldOptions fo;
   std::size_t vertices = 0;
@@ -60,7 +73,24 @@ int main(int argc, char** argv) {
                       "the domain's corners are not on)")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "below", "above"}));
-  tool.app.add_option("-o,--output", out, "Mesh to write (.ply .vtp .vtk .mesh .obj .off .stl), world units")->required();
+  std::string tets;
+  pm::CgalMeshParams p;
+  bool no_optimise = false;
+  tool.app.add_option("-o,--output", out, "Surface mesh to write (.ply .vtp .vtk .mesh .obj .off .stl), world units");
+  tool.app.add_option("--tets", tets,
+                      "cgal modes: also mesh the volume and write its labelled tetrahedra (" +
+                          pm::tet_mesh_extensions() + "; material = 1 for an isosurface, the label for a label map)");
+  tool.app.add_option("--radius-edge", p.cell_radius_edge,
+                      "with --tets: Mesh_3 cell_radius_edge_ratio (circumradius / shortest edge), >= 2")
+      ->capture_default_str();
+  tool.app.add_option("--cell-size", p.cell_size,
+                      "with --tets: Mesh_3 cell_size (circumradius bound), world units; 0 = none (cells grade "
+                      "away from the surface)")
+      ->capture_default_str();
+  tool.app.add_flag("--no-optimise", no_optimise, "with --tets: skip perturb_mesh_3 and exude_mesh_3");
+  tool.app.add_option("--optimise-seconds", p.optimise_seconds,
+                      "with --tets: time limit of perturbation and of exudation, each, s (0 = none)")
+      ->capture_default_str();
   tool.app.add_option("--vertices", vertices, "cgal modes: search the facet size so the mesh has about N vertices");
   tool.app.add_option("--size", size, "cgal modes: Mesh_3 facet_size (and edge_size), world units");
   tool.app.add_option("--distance", distance, "cgal modes: Mesh_3 facet_distance, world units (default size/4)");
@@ -73,7 +103,11 @@ int main(int argc, char** argv) {
   pm::WorldFrame frame = pm::WorldFrame::lps;
   pm::add_frame_option(tool.app, frame);
   return tool.run(argc, argv, [&] {
-    pm::check_output_path(out, pm::OutputKind::mesh, "--output");
+    if (out.empty() && tets.empty()) throw pm::UsageError("give -o SURFACE, --tets VOLUME, or both");
+    if (!tets.empty() && mode == "mc")
+      throw pm::UsageError("mc: --tets is for the cgal modes; marching cubes makes surfaces only");
+    if (!out.empty()) pm::check_output_path(out, pm::OutputKind::mesh, "--output");
+    if (!tets.empty()) pm::check_output_path(tets, pm::OutputKind::tet_mesh, "--tets");
     auto& st = pm::stats();
     st["inputs"] = {fo.input};
     st["parameters"] = {{"mode", mode}};
@@ -82,8 +116,10 @@ int main(int argc, char** argv) {
     if (mode == "mc" && (vertices > 0 || size > 0))
       throw pm::UsageError("mc: --vertices and --size are for the cgal modes; marching cubes uses the voxel grid");
     pm::Mesh m;
+    pm::LabelledTets volume;
     pm::Stopwatch clock;
-    pm::CgalMeshParams p;
+    p.volume = !tets.empty();
+    p.optimise = !no_optimise;
     p.facet_size = size;
     p.facet_distance = distance;
     p.facet_angle = angle;
@@ -96,10 +132,16 @@ int main(int argc, char** argv) {
         v = pm::read_volume(fo.input);
       }
       pm::SizeSearchParams sp{vertices, size, tol, max_runs};
-      if (vertices > 0) sp.start_size = pm::facet_size_for_vertices(pm::label_interface_area(v, fo.input), vertices);
+      if (p.volume) sp.exponent = kVolumeExponent;
+      if (vertices > 0)
+        sp.start_size = pm::facet_size_for_vertices(pm::label_interface_area(v, fo.input),
+                                                    p.volume ? vertices / kVolumeShare : vertices);
       pm::ScopedStage s("cgal");
-      m = record(pm::cgal_size_search([&](const pm::CgalMeshParams& q) { return pm::cgal_labels(v, q); }, p, sp),
-                 sp, st).surface;
+      pm::CgalMeshResult r =
+          record(pm::cgal_size_search([&](const pm::CgalMeshParams& q) { return pm::cgal_labels(v, q); }, p, sp), sp,
+                 st);
+      m = std::move(r.surface);
+      volume = std::move(r.volume);
     } else {
       pm::LoadedField lf;
       pm::Volume v;
@@ -116,21 +158,34 @@ int main(int argc, char** argv) {
         m = pm::marching_cubes_baseline(v, lf.iso, below);
       } else {
         pm::SizeSearchParams sp{vertices, size, tol, max_runs};
+        if (p.volume) sp.exponent = kVolumeExponent;
         if (vertices > 0)
-          sp.start_size =
-              pm::facet_size_for_vertices(pm::mesh_area(pm::marching_cubes_baseline(v, lf.iso, below)), vertices);
+          sp.start_size = pm::facet_size_for_vertices(pm::mesh_area(pm::marching_cubes_baseline(v, lf.iso, below)),
+                                                      p.volume ? vertices / kVolumeShare : vertices);
         pm::ScopedStage s("cgal");
-        m = record(pm::cgal_size_search(
-                       [&](const pm::CgalMeshParams& q) { return pm::cgal_isosurface(v, lf.iso, below, q); }, p, sp),
-                   sp, st)
-                .surface;
+        pm::CgalMeshResult r = record(
+            pm::cgal_size_search([&](const pm::CgalMeshParams& q) { return pm::cgal_isosurface(v, lf.iso, below, q); },
+                                 p, sp),
+            sp, st);
+        m = std::move(r.surface);
+        volume = std::move(r.volume);
       }
     }
     const pm::MeshTopology t = pm::mesh_topology(m);
-    pm::write_mesh(m, out, {true, frame});
+    if (!out.empty()) pm::write_mesh(m, out, {true, frame});
+    if (!tets.empty()) {
+      pm::write_tet_mesh(volume, tets, {frame});
+      pm::info(std::to_string(volume.vertices.size()) + " vertices, " + std::to_string(volume.tets.size()) +
+               " tetrahedra -> " + tets);
+      st["counts"]["tet_vertices"] = volume.vertices.size();
+      st["counts"]["tetrahedra"] = volume.tets.size();
+      st["quality"] = pm::to_json(pm::tet_quality(volume));
+    }
     pm::info(std::to_string(t.vertices) + " vertices, " + std::to_string(t.faces) + " triangles, " +
              std::to_string(t.components) + " component(s), genus " + std::to_string(t.genus));
-    st["outputs"] = {out};
+    st["outputs"] = pm::Json::array();
+    for (const std::string& f : {out, tets})
+      if (!f.empty()) st["outputs"].push_back(f);
     st["counts"]["vertices"] = t.vertices;
     st["counts"]["faces"] = t.faces;
     st["counts"]["components"] = t.components;

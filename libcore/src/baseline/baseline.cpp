@@ -70,14 +70,18 @@ SizeSearchResult cgal_size_search(const CgalMesher& mesher, CgalMeshParams p, co
     return out;
   }
   if (!(s.start_size > 0)) throw UsageError("cgal_size_search: start size must be > 0 world units");
+  // Volume meshes: the size is searched without sliver optimisation (it
+  // moves vertices but adds none), then the best size is run once with it.
+  const bool optimise_last = p.volume && p.optimise;
+  p.optimise = false;
   p.facet_size = s.start_size;
   double best_err = 1e300;
   for (int k = 0; k < std::max(1, s.max_runs); ++k) {
     CgalMeshResult r = mesher(p);
-    const double n = double(r.surface.vertices.size());
+    const double n = double(r.vertex_count());
     const double err = std::abs(n / double(s.target) - 1);
-    out.tries.push_back({p.facet_size, r.surface.vertices.size(), r.seconds});
-    info("facet size " + std::to_string(p.facet_size) + ": " + std::to_string(r.surface.vertices.size()) +
+    out.tries.push_back({p.facet_size, r.vertex_count(), r.seconds});
+    info("facet size " + std::to_string(p.facet_size) + ": " + std::to_string(r.vertex_count()) +
          " vertices (target " + std::to_string(s.target) + ")");
     if (err < best_err) {
       best_err = err;
@@ -85,9 +89,15 @@ SizeSearchResult cgal_size_search(const CgalMesher& mesher, CgalMeshParams p, co
       out.facet_size = p.facet_size;
     }
     if (err <= s.tolerance || n == 0) break;
-    p.facet_size *= std::sqrt(n / double(s.target));
+    p.facet_size *= std::pow(n / double(s.target), s.exponent);
   }
   out.deviation = best_err;
+  if (optimise_last) {
+    p.optimise = true;
+    p.facet_size = out.facet_size;
+    out.best = mesher(p);
+    out.deviation = std::abs(double(out.best.vertex_count()) / double(s.target) - 1);
+  }
   return out;
 }
 

@@ -52,6 +52,11 @@ void add_conform_options(CLI::App& app, ConformRun& r) {
                  "With --conform: refinement bound on circumradius / shortest edge (dimensionless, > 1)")
       ->capture_default_str()
       ->check(CLI::Range(1.01, 100.0));
+  app.add_option("--max-volume", r.params.max_volume,
+                 "With --conform: refinement also splits tetrahedra larger than this, world units^3 (TetGen -a); "
+                 "0 = no bound")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--max-dihedral", r.params.max_dihedral,
                  "With --conform: sliver removal works on tetrahedra with a dihedral angle above this, degrees")
       ->capture_default_str()
@@ -63,6 +68,11 @@ void add_conform_options(CLI::App& app, ConformRun& r) {
       ->check(CLI::Range(1, 5));
   app.add_flag("--optimise,!--no-optimise", r.params.optimise,
                "With --conform: sliver removal (TetGen's flips and interior-vertex smoothing; default on)");
+  app.add_option("--smooth", r.params.smooth_sweeps,
+                 "With --conform: sweeps of ODT smoothing of the interior vertices at the end (moves that keep "
+                 "every tetrahedron positive and do not lower the worst radius ratio around the vertex); 0 = none")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 50));
   app.add_option("--require", r.require,
                  "With --conform: check the final mesh as meshstats --require does (e.g. "
                  "\"min_dihedral>=12,max_dihedral<=160,rr_mean>=0.8,positive,triangles_match\"); exit 3 "

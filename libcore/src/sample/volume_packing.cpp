@@ -176,9 +176,15 @@ VolumePackResult pack_volume(const ScalarField& field, double iso, const std::ve
       e.add(placed[i]);
       ++r.seeds;
     }
-  if (r.seeds == 0)
-    throw InputError("volume packing: no seed point lies inside material " + std::to_string(label) +
-                     " (a region thinner than its spacing?)");
+  r.fixed = nfixed;
+  if (r.seeds == 0) {
+    // A region thinner than its spacing (frog bones at 2 mm): no interior
+    // particle fits; the tetrahedralisation meshes it from its boundary.
+    warn("volume packing: material " + std::to_string(label) +
+         ": no seed point lies inside (a region thinner than its spacing); no interior particles");
+    r.converged = true;
+    return r;
+  }
   if (p.progress)
     info("volume packing, material " + std::to_string(label) + ": " + std::to_string(nfixed) + " fixed, " +
          std::to_string(r.seeds) + " seeds");

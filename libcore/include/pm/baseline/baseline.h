@@ -11,6 +11,8 @@
 
 #include "pm/base/volume.h"
 #include "pm/io/mesh.h"
+#include "pm/io/tet_mesh.h"
+#include "pm/mesh/tet_conform.h"
 
 namespace pm {
 
@@ -34,6 +36,16 @@ struct CgalMeshParams {
   double edge_size = 0;       ///< labels: size of the protected triple lines' edges (0: facet_size)
   int threads = 0;            ///< 0: all cores (CGAL's parallel Mesh_3 needs TBB; > 1 is not deterministic)
   std::uint64_t seed = 1;     ///< CGAL's default random generator
+  /// Volume mesh (issue #19's side by side): refine the cells too
+  /// (cell_radius_edge_ratio, cell_size), keep the labelled tetrahedra in
+  /// CgalMeshResult::volume, and with `optimise` run CGAL's sliver
+  /// perturbation (perturb_mesh_3) and then sliver exudation (exude_mesh_3),
+  /// each measured as its own step.
+  bool volume = false;
+  double cell_radius_edge = 2;  ///< circumradius / shortest edge bound (CGAL guarantees termination for >= 2)
+  double cell_size = 0;         ///< circumradius bound, world units (0: none, the cells grade away from the surface)
+  bool optimise = true;         ///< volume: perturb, then exude
+  double optimise_seconds = 0;  ///< time limit of perturb and of exude, each (0: none)
 };
 
 struct CgalMeshResult {
@@ -41,6 +53,15 @@ struct CgalMeshResult {
   std::size_t c3t3_vertices = 0;
   double seconds = 0;         ///< time in CGAL (domain + make_mesh_3 + extraction)
   bool parallel = false;
+  /// CgalMeshParams::volume: the cells in the complex (materials = subdomain
+  /// indices, 1 for an isosurface's material, the labels for a label map;
+  /// positively oriented) and the complex's facets with their label pairs
+  /// (0 = outside), and one measured step per pass: "refine" (make_mesh_3),
+  /// "perturb", "exude".
+  LabelledTets volume;
+  std::vector<ConformStep> steps;
+  /// Vertices the size search counts: the tetrahedra's with `volume`, else the surface's.
+  std::size_t vertex_count() const { return volume.tets.empty() ? surface.vertices.size() : volume.vertices.size(); }
 };
 
 /// CGAL Mesh_3 surface mesh of the isosurface F = iso of a grey-level image
@@ -81,6 +102,9 @@ struct SizeSearchParams {
   double start_size = 0;    ///< first facet size tried, world units (e.g. facet_size_for_vertices)
   double tolerance = 0.1;   ///< accepted relative deviation of the vertex count
   int max_runs = 5;         ///< most Mesh_3 runs
+  /// N ~ size^-1/exponent: 0.5 for surfaces; volumes graded from the
+  /// surface grow faster than surfaces as the size shrinks (about 0.4).
+  double exponent = 0.5;
 };
 
 struct SizeSearchTry {
@@ -97,9 +121,12 @@ struct SizeSearchResult {
 };
 
 /// Run `mesher` at p.facet_size (target 0), or search the facet size whose
-/// mesh has about `target` vertices: N ~ 1/size^2, so size *= sqrt(N / target)
-/// after each run, until within the tolerance or max_runs. A given
+/// mesh has about `target` vertices (CgalMeshResult::vertex_count): N ~
+/// 1/size^2 on a surface, so size *= (N / target)^exponent after each run,
+/// until within the tolerance or max_runs. A given
 /// facet_distance stays fixed; by default it is facet_size / 4 at every size.
+/// Volume meshes with optimisation: the tries skip it, and the best size is
+/// run once more with it (perturbation and exudation add no vertices).
 using CgalMesher = std::function<CgalMeshResult(const CgalMeshParams&)>;
 SizeSearchResult cgal_size_search(const CgalMesher& mesher, CgalMeshParams p, const SizeSearchParams& s);
 

@@ -34,6 +34,9 @@ struct ConformParams {
   /// the 12). min_dihedral = 0: no refinement step.
   double min_dihedral = 18;
   double radius_edge = 2.0;  ///< > 1 (TetGen terminates for >= √2 in theory)
+  /// Refinement also splits tetrahedra larger than this, world units³ (TetGen
+  /// -a; 0 = no bound): how TetGen alone reaches a given vertex count.
+  double max_volume = 0;
   /// Sliver removal (TetGen -O, level `optimise_level` 1..9, scheme 7: flips,
   /// smoothing of interior vertices, point insertion): TetGen works on every
   /// tetrahedron whose largest dihedral angle exceeds `max_dihedral`
@@ -60,6 +63,11 @@ struct ConformParams {
   /// exude_rounds times (0 = never).
   int exude_rounds = 2;
   double exude_below = 12, exude_above = 160;
+  /// Of the meshings (1 + exude rounds), the one with the fewest tetrahedra
+  /// outside [exude_below, exude_above] is kept. Then ODT smoothing of the
+  /// interior and Steiner points (pm::odt_smooth; boundary vertices fixed),
+  /// this many sweeps (0 = none), measured as step "smooth".
+  int smooth_sweeps = 5;
   bool progress = true;  ///< one pm::info line per step
 };
 
@@ -91,6 +99,8 @@ struct ConformResult {
   std::size_t unused_boundary_vertices = 0;  ///< in no triangle: left out
   std::size_t interior_given = 0, interior_kept = 0;
   std::size_t interior_exuded = 0;  ///< interior points removed to mesh again (exude_rounds)
+  std::string kept_step;            ///< the meshing kept (its last TetGen step's name)
+  std::size_t smooth_moves = 0;     ///< vertex moves of the ODT smoothing
   std::size_t interior_outside = 0;     ///< label_at gave outside_label
   std::size_t interior_near_point = 0;  ///< within the tolerance of a boundary triangle or an earlier point
   std::size_t interior_refused = 0;     ///< not kept by TetGen (outside the surface, on a triangle)
@@ -122,5 +132,7 @@ ConformResult conforming_tets(const Mesh& boundary, const std::vector<std::array
 /// Counts, and per step seconds, vertices, tetrahedra and pm::to_json(TetQuality)
 /// (plus share_25_140), for --stats.
 Json to_json(const ConformResult& r);
+/// The steps alone: name, seconds, vertices, tetrahedra, Steiner points, quality.
+Json to_json(const std::vector<ConformStep>& steps);
 
 }  // namespace pm

@@ -61,7 +61,8 @@ struct VolumePackResult {
 /// point satisfies F < iso. Deterministic for a fixed seed and any thread
 /// count. `label` is stored in result.labels.
 /// \throw UsageError for spacing <= 0 without a sizing field or other
-/// invalid params; InputError when no seed lies inside the region.
+/// invalid params. A region no seed fits in (thinner than its spacing) gets
+/// no free particles, with a warning.
 VolumePackResult pack_volume(const ScalarField& field, double iso, const std::vector<Vec3>& fixed,
                              const VolumePackParams& p, int label = 1);
 

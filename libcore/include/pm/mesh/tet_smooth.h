@@ -1,0 +1,33 @@
+#pragma once
+// Smoothing of the free vertices of a tetrahedral mesh (issue #19, "ODT or
+// particle smoothing of interior vertices"): the optimal Delaunay
+// triangulation update of Chen and Alliez et al., x_i <- sum_T |T| c_T /
+// sum_T |T| over the tetrahedra T around vertex i (c_T the circumcentre),
+// with the connectivity kept. A move is kept only when every tetrahedron
+// around the vertex stays positively oriented and the worst radius ratio
+// among them does not drop (else half the move is tried, else none), so the
+// mesh's smallest radius ratio never falls and no vertex crosses a face:
+// materials and boundary stay as they are. World units.
+#include <cstddef>
+
+#include "pm/io/tet_mesh.h"
+
+namespace pm {
+
+struct TetSmoothParams {
+  int sweeps = 5;              ///< Gauss-Seidel sweeps over the free vertices (>= 1)
+  double stop_fraction = 1e-3; ///< stop early when fewer than this share of free vertices moved in a sweep
+};
+
+struct TetSmoothResult {
+  int sweeps = 0;               ///< sweeps run
+  std::size_t moves = 0;        ///< accepted moves (full or half), all sweeps
+  std::size_t rejected = 0;     ///< vertices left in place in a sweep because no move was acceptable
+};
+
+/// Smooth the vertices with index >= first_free (the others, e.g. boundary
+/// and interface vertices, never move). Deterministic (sequential, vertex
+/// order). \throw UsageError for sweeps < 1 or first_free beyond the vertices.
+TetSmoothResult odt_smooth(LabelledTets& t, std::size_t first_free, const TetSmoothParams& p = {});
+
+}  // namespace pm
