@@ -85,7 +85,9 @@ TEST(TetConform, BallKeepsItsBoundaryAndVolume) {
   inner.push_back({2, 0, 0});                   // outside: dropped by label_at
   inner.push_back(s.vertices[5] * (1 - 1e-9));  // on top of a boundary vertex: dropped
   inner.push_back(inner[0]);                    // a duplicate: dropped
-  const ConformResult r = conforming_tets(s, pairs(s.faces.size(), 0, 1), inner, ball_label, 0, quiet());
+  ConformParams p = quiet();
+  p.smooth_sweeps = 0;  // the interior points stay where they were given (TetSmooth tests the smoothing)
+  const ConformResult r = conforming_tets(s, pairs(s.faces.size(), 0, 1), inner, ball_label, 0, p);
   EXPECT_EQ(r.interior_given, lattice + 3);
   EXPECT_EQ(r.interior_outside, 1u);
   EXPECT_EQ(r.interior_near_point, 2u);
@@ -315,6 +317,7 @@ TEST(TetConform, StepsCanBeSwitchedOff) {
   p.min_dihedral = 0;
   p.optimise = false;
   p.exude_rounds = 0;
+  p.smooth_sweeps = 0;
   const ConformResult r = conforming_tets(s, pairs(s.faces.size(), 0, 1), bcc_ball(1, 0.2, 0.14), ball_label, 0, p);
   ASSERT_EQ(r.steps.size(), 1u);
   EXPECT_EQ(r.steps[0].name, "cdt");
@@ -343,6 +346,7 @@ TEST(TetConform, InteriorPointsOfSliversAreRemovedAndMeshedAgain) {
   p.min_dihedral = 0;
   p.optimise = false;
   p.exude_rounds = 0;
+  p.smooth_sweeps = 0;  // smoothing would move the point off the triangle too
   const ConformResult kept = conforming_tets(s, pairs(s.faces.size(), 0, 1), inner, ball_label, 0, p);
   ASSERT_LT(kept.steps.back().quality.overall.dihedral_min, 12.0);
   p.exude_rounds = 2;
@@ -353,6 +357,53 @@ TEST(TetConform, InteriorPointsOfSliversAreRemovedAndMeshedAgain) {
   for (const Vec3& v : r.mesh.vertices) EXPECT_GT(norm(v - inner.back()), 1e-12);
   EXPECT_GT(r.steps.back().quality.overall.dihedral_min, kept.steps.back().quality.overall.dihedral_min);
   EXPECT_EQ(r.mesh.triangles, s.faces);  // the boundary is untouched
+}
+
+}  // namespace
+}  // namespace pm
+
+#include "pm/mesh/tet_smooth.h"
+
+namespace pm {
+namespace {
+
+TEST(TetSmooth, OdtRaisesMeanQualityKeepsWorstBoundaryAndVolume) {
+  // A jittered lattice inside an icosphere, meshed without TetGen's own
+  // optimisation: ODT smoothing must raise the mean radius ratio, never
+  // lower the smallest one (each move keeps the worst around its vertex),
+  // keep every tetrahedron positive, the boundary vertices where they are and
+  // the enclosed volume exact (the boundary does not move).
+  const Mesh s = icosphere(3, 1.0);
+  std::vector<Vec3> inner = bcc_ball(1, 0.18, 0.1);
+  std::uint64_t state = 7;
+  for (Vec3& x : inner) {
+    auto u = [&] {
+      state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+      return double(state >> 11) / double(1ULL << 53) - 0.5;
+    };
+    x += Vec3(u(), u(), u()) * 0.06;
+  }
+  ConformParams p = quiet();
+  p.min_dihedral = 0;
+  p.optimise = false;
+  p.exude_rounds = 0;
+  p.smooth_sweeps = 0;
+  const ConformResult r = conforming_tets(s, pairs(s.faces.size(), 0, 1), inner, ball_label, 0, p);
+  LabelledTets t = r.mesh;
+  const TetQuality before = tet_quality(t);
+  const TetSmoothResult sr = odt_smooth(t, s.vertices.size());
+  const TetQuality after = tet_quality(t);
+  EXPECT_GT(sr.moves, 0u);
+  EXPECT_GT(after.overall.rr_mean, before.overall.rr_mean + 0.01);
+  EXPECT_GE(after.overall.rr_min, before.overall.rr_min);
+  EXPECT_EQ(after.overall.non_positive, 0u);
+  for (std::size_t i = 0; i < s.vertices.size(); ++i) EXPECT_EQ(t.vertices[i], r.mesh.vertices[i]);
+  EXPECT_NEAR(after.overall.volume, before.overall.volume, 1e-9 * before.overall.volume);
+  EXPECT_EQ(t.tets, r.mesh.tets);  // connectivity kept
+  EXPECT_THROW(odt_smooth(t, t.vertices.size() + 1), UsageError);
+  TetSmoothParams bad;
+  bad.sweeps = 0;
+  EXPECT_THROW(odt_smooth(t, 0, bad), UsageError);
 }
 
 }  // namespace

@@ -121,6 +121,7 @@ int main(int argc, char** argv) {
                 "  tetlabel interior.ply --conform surface.ply -i brain_sdf.nrrd --iso 0 --tets volume.vtu "
                 "--require min_dihedral>=12 --stats volume_quality.json");
   std::string points, out, tets, inside = "auto", outside = "auto", surfaces;
+  std::vector<std::string> tets_list;
   pm::MaterialOptions mo;
   bool repair = true;
   int improve = 0;
@@ -144,7 +145,9 @@ int main(int argc, char** argv) {
                       "warning, when the Delaunay surface is not a closed manifold")
       ->capture_default_str()
       ->check(CLI::Range(0, 100));
-  tool.app.add_option("--tets", tets, "Also write the inside tetrahedra, by extension: .mesh (MEDIT, material references and boundary triangles), .vtu or .vtk (VTK, cell array material), .msh (Gmsh 4.1, one physical group per material)");
+  tool.app.add_option("--tets", tets_list, "Also write the inside tetrahedra, by extension: .mesh (MEDIT, material references and boundary triangles), .vtu or .vtk (VTK, cell array material), .msh (Gmsh 4.1, one physical group per material and per interface); with --conform it may be given several times, one file per format")
+      ->expected(1)
+      ->take_all();
   pm::add_material_options(tool.app, mo, false, "")
       ->excludes("--input")
       ->excludes("--implicit");
@@ -167,7 +170,7 @@ int main(int argc, char** argv) {
       if (!mo.spec.empty() && tool.app.count("--inside") > 0) throw pm::UsageError("--inside needs -i/--implicit, not --materials");
       if (mo.spec.empty() && outside != "auto") throw pm::UsageError("--outside needs --materials");
       cr.interior = points;
-      cr.tets = tets;
+      cr.tets = tets_list;
       cr.field = fo;
       cr.inside = inside;
       cr.materials = mo;
@@ -178,6 +181,8 @@ int main(int argc, char** argv) {
       pm::run_conform(cr);
       return;
     }
+    if (tets_list.size() > 1) throw pm::UsageError("--tets once, unless with --conform");
+    if (!tets_list.empty()) tets = tets_list[0];
     for (const char* o : {"--min-dihedral", "--radius-edge", "--max-dihedral", "--rounds", "--optimise", "--no-optimise",
                           "--require"})
       if (tool.app.count(o) > 0) throw pm::UsageError(std::string(o) + " needs --conform");

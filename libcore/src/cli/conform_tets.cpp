@@ -81,7 +81,7 @@ void add_conform_options(CLI::App& app, ConformRun& r) {
 
 void check_conform_options(const ConformRun& r) {
   if (r.tets.empty()) throw UsageError("--conform needs --tets FILE (" + output_extensions(OutputKind::tet_mesh) + ")");
-  check_output_path(r.tets, OutputKind::tet_mesh, "--tets");
+  for (const std::string& f : r.tets) check_output_path(f, OutputKind::tet_mesh, "--tets");
   if (!r.require.empty()) check_tet_requirements(TetQuality{}, r.require);  // unknown items: UsageError
   if (r.materials.spec.empty() && r.field.input.empty() && r.field.implicit.empty())
     throw UsageError(
@@ -151,19 +151,19 @@ void run_conform(const ConformRun& r) {
          num(res.min_vote_share) + " of a region's volume)");
   {
     ScopedStage w("write");
-    write_tet_mesh(res.mesh, r.tets, {r.frame});
+    for (const std::string& f : r.tets) write_tet_mesh(res.mesh, f, {r.frame});
   }
   const Json j = to_json(res);
   st["counts"] = j["counts"];
   st["steps"] = j["steps"];
   st["quality"] = j["steps"].back()["quality"];
-  st["outputs"] = {r.tets};
+  st["outputs"] = r.tets;
   const TetQuality& q = res.steps.back().quality;
   if (verbosity() != Verbosity::quiet) std::fputs(format_table(q).c_str(), stderr);
   if (!r.require.empty()) {
     const auto failed = check_tet_requirements(q, r.require);
     if (!failed.empty()) {
-      std::string msg = quote(r.tets) + ": " + std::to_string(failed.size()) + " requirement(s) not met:";
+      std::string msg = quote(r.tets.front()) + ": " + std::to_string(failed.size()) + " requirement(s) not met:";
       for (const auto& f : failed) msg += " " + f;
       throw CheckFailed(msg);
     }

@@ -763,6 +763,10 @@ ConformResult conforming_tets(const Mesh& boundary, const std::vector<std::array
   }
   if (best_step + 1 != res.steps.size()) {
     res.mesh = std::move(best);
+    ConformStep again = res.steps[best_step];  // the last step is always the mesh returned
+    again.name = "keep " + again.name;
+    again.seconds = 0;
+    res.steps.push_back(again);
     if (p.progress)
       info("conform: keeping step \"" + res.steps[best_step].name + "\" (" + std::to_string(best_bad) +
            " tetrahedra outside [" + num(p.exude_below) + ", " + num(p.exude_above) + "] degrees)");

@@ -6,6 +6,7 @@
 // quality into pm::stats(). World units throughout.
 #include <CLI/CLI.hpp>
 #include <string>
+#include <vector>
 
 #include "pm/cli/field_options.h"
 #include "pm/cli/material_options.h"
@@ -17,7 +18,7 @@ namespace pm {
 struct ConformRun {
   std::string interior;  ///< interior points (any read_mesh format; vertices only)
   std::string surface;   ///< boundary: a closed surface, or interfaces with face properties label_a < label_b
-  std::string tets;      ///< output, by extension (write_tet_mesh)
+  std::vector<std::string> tets;  ///< outputs, one per format, by extension (write_tet_mesh)
   /// One material: the field and its isovalue (material on the `inside` side
   /// of iso: "below", "above" or "auto"); every triangle gets labels (0, 1).
   FieldOptions field;
