@@ -115,8 +115,27 @@ for ext in ("mesh", "vtu", "vtk", "msh"):
     if ext == "mesh":  # boundary and interface triangles, one reference per label pair
         refs = np.concatenate([d for b, d in zip(m.cells, m.cell_data["medit:ref"]) if b.type == "triangle"])
         assert sorted(set(refs.tolist())) == [1, 2, 3], set(refs.tolist())
+        medit_pts = m.points
+        medit_pairs = {tuple(sorted(f)): {1: (0, 1), 2: (0, 2), 3: (1, 2)}[r]
+                       for f, r in zip(np.concatenate([b.data for b in m.cells if b.type == "triangle"]), refs.tolist())}
+        assert len(medit_pairs) == len(refs)
     if ext == "msh":
-        assert {n for n, _ in m.field_data.items()} == {"material_1", "material_2"}, m.field_data
+        # One physical group per material (dim 3) and per label pair (dim 2), every one named.
+        names = {n: (int(v[0]), int(v[1])) for n, v in m.field_data.items()}
+        assert set(names) == {"material_1", "material_2", "interface_0_1", "interface_0_2", "interface_1_2"}, names
+        assert all(d == (3 if n.startswith("material_") else 2) for n, (_, d) in names.items()), names
+        assert (mat == np.array([names[f"material_{l}"][0] for l in mat])).all()
+        pair_of_tag = {t: tuple(int(x) for x in n.split("_")[1:]) for n, (t, d) in names.items() if d == 2}
+        assert not set(pair_of_tag) & {names["material_1"][0], names["material_2"][0]}, names  # no tag is both
+        # The triangles: as many as MEDIT's, each in the group of its label pair.
+        tri = [(b.data, d.reshape(-1)) for b, d in zip(m.cells, m.cell_data["gmsh:physical"]) if b.type == "triangle"]
+        assert tri, [b.type for b in m.cells]
+        T3 = np.concatenate([c for c, _ in tri]); tags = np.concatenate([d for _, d in tri])
+        assert T3.shape == (len(medit_pairs), 3), (T3.shape, len(medit_pairs))
+        assert sorted(set(tags.tolist())) == sorted(pair_of_tag), (set(tags.tolist()), pair_of_tag)
+        assert all(len(set(d.tolist())) == 1 for _, d in tri), "one group per triangle block"
+        assert np.abs(m.points - medit_pts).max() < 1e-12  # same vertices, same order
+        assert {tuple(sorted(f)): pair_of_tag[t] for f, t in zip(T3.tolist(), tags.tolist())} == medit_pairs, "pairs"
 first = tets["mesh"]
 for ext, v in tets.items():
     assert v[0] == first[0] and v[1] == first[1] and (v[2] == first[2]).all(), (ext, v, first)

@@ -241,8 +241,16 @@ TEST(TetMesh, EveryFormatByExtension) {
   write_tet_mesh(t, d + "/v.msh");
   const std::string msh = slurp(d + "/v.msh");
   EXPECT_EQ(msh.rfind("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n", 0), 0u);
-  EXPECT_NE(msh.find("$PhysicalNames\n2\n3 1 \"material_1\"\n3 2 \"material_2\"\n"), std::string::npos);
+  // Surface groups per label pair, tagged above the volume tags 1 and 2.
+  EXPECT_NE(msh.find("$PhysicalNames\n4\n2 3 \"interface_0_1\"\n2 4 \"interface_1_2\"\n"
+                     "3 1 \"material_1\"\n3 2 \"material_2\"\n$EndPhysicalNames\n"),
+            std::string::npos)
+      << msh;
+  EXPECT_NE(msh.find("$Entities\n0 0 2 2\n3 0 0 0 1 1 0 1 3 0\n4 0 0 0 1 1 1 1 4 0\n"), std::string::npos) << msh;
+  EXPECT_NE(msh.find("$Elements\n4 4 1 4\n"), std::string::npos) << msh;  // 4 blocks, tags 1..4
   EXPECT_NE(msh.find("3 2 4 1\n2 2 3 4 5\n"), std::string::npos);  // entity 2, tetrahedra, 1 element
+  // Triangles (type 2) after the tetrahedra, element tags going on: (0, 1) then (1, 2).
+  EXPECT_NE(msh.find("2 3 2 1\n3 1 3 2\n2 4 2 1\n4 2 3 4\n$EndElements\n"), std::string::npos) << msh;
 }
 
 TEST(TetMesh, GmshTagsArePositiveWhateverTheLabels) {
@@ -251,7 +259,27 @@ TEST(TetMesh, GmshTagsArePositiveWhateverTheLabels) {
   const std::string path = test::temp_dir() + "/n.msh";
   write_tet_mesh(t, path);
   const std::string msh = slurp(path);
-  EXPECT_NE(msh.find("3 1 \"material_-3\"\n3 2 \"material_0\"\n"), std::string::npos) << msh;
+  EXPECT_NE(msh.find("2 3 \"interface_0_1\"\n2 4 \"interface_1_2\"\n3 1 \"material_-3\"\n3 2 \"material_0\"\n"),
+            std::string::npos)
+      << msh;
+  // Positive labels are the volume tags; the surface tags go on above the largest.
+  t.materials = {5, 9};
+  write_tet_mesh(t, path);
+  EXPECT_NE(slurp(path).find("2 10 \"interface_0_1\"\n2 11 \"interface_1_2\"\n3 5 \"material_5\"\n3 9 \"material_9\"\n"),
+            std::string::npos)
+      << slurp(path);
+  // No room above the largest label: a clear error, no file.
+  t.materials = {1, 2147483646};
+  const std::string full = test::temp_dir() + "/full.msh";
+  try {
+    write_tet_mesh(t, full);
+    ADD_FAILURE() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("material label 2147483646 leaves no room for the 2 surface tags"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_FALSE(std::filesystem::exists(full));
 }
 
 TEST(TetMesh, UnknownExtensionIsAUsageErrorAndWritesNothing) {

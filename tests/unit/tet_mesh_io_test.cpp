@@ -9,6 +9,8 @@
 #include <cstring>
 #include <fstream>
 #include <functional>
+#include <map>
+#include <set>
 #include <sstream>
 
 #include "pm/base/error.h"
@@ -25,10 +27,11 @@
 namespace pm {
 namespace {
 
-// 2 x 2 x 1 cubes, materials 3 (x < 1) and 7; coordinates that are not short
-// decimals, so bit-exact round trips mean something.
+// 2 x 2 x 1 cubes, materials 3 (the first column of cubes) and 7; coordinates
+// that are not short decimals, so bit-exact round trips mean something.
 LabelledTets sample() {
-  LabelledTets t = test::tet_box(2, 2, 1, 1.0, [](const Vec3& c) { return c.x < 1 ? 3 : 7; }, {10.1, -20.3, 30.7});
+  const Vec3 origin(10.1, -20.3, 30.7);  // tet_box passes centroids with the origin in
+  LabelledTets t = test::tet_box(2, 2, 1, 1.0, [&](const Vec3& c) { return c.x < origin.x + 1 ? 3 : 7; }, origin);
   for (std::size_t i = 0; i < t.vertices.size(); ++i) t.vertices[i] += Vec3(1e-9 * double(i), 1.0 / 3, -1.0 / 7);
   return t;
 }
@@ -83,7 +86,8 @@ TEST_P(RoundTrip, OurWriterThenReaderIsBitExact) {
     EXPECT_TRUE(file_has_tetrahedra(path));
     EXPECT_TRUE(is_tet_mesh_file(path));
     const LabelledTets r = read_tet_mesh(path);  // back in LPS: x and y negated twice, exactly
-    // Gmsh groups tetrahedra by material: the order within a material is kept.
+    // Gmsh groups tetrahedra by material and triangles by label pair: the
+    // order within a group is kept.
     if (ext == ".msh") {
       LabelledTets sorted = t;
       std::vector<std::size_t> order(t.tets.size());
@@ -93,12 +97,23 @@ TEST_P(RoundTrip, OurWriterThenReaderIsBitExact) {
         sorted.tets[i] = t.tets[order[i]];
         sorted.materials[i] = t.materials[order[i]];
       }
-      expect_same_tets(sorted, r, false);
+      std::vector<std::size_t> tri(t.triangles.size());
+      for (std::size_t i = 0; i < tri.size(); ++i) tri[i] = i;
+      std::stable_sort(tri.begin(), tri.end(),
+                       [&](std::size_t a, std::size_t b) { return t.triangle_labels[a] < t.triangle_labels[b]; });
+      for (std::size_t i = 0; i < tri.size(); ++i) {
+        sorted.triangles[i] = t.triangles[tri[i]];
+        sorted.triangle_labels[i] = t.triangle_labels[tri[i]];
+      }
+      expect_same_tets(sorted, r, true);
     } else {
       expect_same_tets(t, r, ext == ".mesh");
     }
-    if (ext != ".mesh") EXPECT_TRUE(r.triangles.empty());  // our VTK and Gmsh writers store tetrahedra only
+    if (ext == ".vtu" || ext == ".vtk") EXPECT_TRUE(r.triangles.empty());  // our VTK writers store tetrahedra only
   }
+  // The fixture has boundary (0, 3), (0, 7) and interface (3, 7) triangles.
+  std::set<std::array<int, 2>> pairs(t.triangle_labels.begin(), t.triangle_labels.end());
+  EXPECT_EQ(pairs, (std::set<std::array<int, 2>>{{0, 3}, {0, 7}, {3, 7}}));
 }
 
 INSTANTIATE_TEST_SUITE_P(TetFormats, RoundTrip,
@@ -116,6 +131,16 @@ TEST(TetMeshRead, GmshLabelsThatAreNotPositiveComeBackFromTheNames) {
   std::map<int, int> count;
   for (int m : r.materials) ++count[m];
   EXPECT_EQ(count, (std::map<int, int>{{-2, 6}, {0, 6}}));
+  // Label pairs too, negative ones included. tet_box puts 0 first on the
+  // boundary, (0, -2) and (0, 0), and writes (-2, 0) at the interface: three
+  // groups; the reader gives the smaller label first, so (0, -2) reads (-2, 0).
+  std::map<std::array<int, 2>, int> want, got;
+  for (const auto& p : t.triangle_labels) ++want[{std::min(p[0], p[1]), std::max(p[0], p[1])}];
+  for (const auto& p : r.triangle_labels) ++got[p];
+  EXPECT_EQ(want.size(), 2u);
+  EXPECT_EQ(got, want);
+  EXPECT_NE(slurp(path).find("\"interface_0_-2\""), std::string::npos);
+  EXPECT_EQ(r.triangles.size(), t.triangles.size());
 }
 
 TEST(TetMeshRead, SurfacesAreNotTetrahedra) {

@@ -2,9 +2,11 @@
 #include "pm/io/gmsh.h"
 
 #include <algorithm>
+#include <array>
 #include <cstdio>
 #include <fstream>
 #include <map>
+#include <string>
 #include <unordered_map>
 #include <vector>
 
@@ -12,6 +14,25 @@
 #include "scan.h"
 
 namespace pm {
+namespace {
+
+// The bounding box of the vertices of some cells, as 6 numbers for $Entities.
+template <std::size_t N>
+std::string bounding_box(const LabelledTets& t, const std::vector<std::array<int, N>>& cells,
+                         const std::vector<std::size_t>& idx) {
+  Vec3 lo(1e300, 1e300, 1e300), hi(-1e300, -1e300, -1e300);
+  for (std::size_t i : idx)
+    for (int v : cells[i])
+      for (int c = 0; c < 3; ++c) {
+        lo[c] = std::min(lo[c], t.vertices[std::size_t(v)][c]);
+        hi[c] = std::max(hi[c], t.vertices[std::size_t(v)][c]);
+      }
+  char b[160];
+  std::snprintf(b, sizeof b, "%.17g %.17g %.17g %.17g %.17g %.17g", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
+  return b;
+}
+
+}  // namespace
 
 void write_gmsh(const LabelledTets& t, const std::string& path, WorldFrame frame) {
   const std::string where = "write_gmsh: " + quote(path);
@@ -19,34 +40,46 @@ void write_gmsh(const LabelledTets& t, const std::string& path, WorldFrame frame
   if (t.tets.empty()) throw InputError(where + ": no tetrahedra; expected at least one to write");
   std::map<int, std::vector<std::size_t>> by_label;
   for (std::size_t i = 0; i < t.tets.size(); ++i) by_label[t.materials[i]].push_back(i);
+  std::map<std::array<int, 2>, std::vector<std::size_t>> by_pair;
+  for (std::size_t i = 0; i < t.triangles.size(); ++i) by_pair[t.triangle_labels[i]].push_back(i);
+  // Volume tags (entity = physical): the labels when all are positive, else
+  // 1, 2, ...; surface tags continue above the largest volume tag, so no tag
+  // means a volume and a surface at once even for tools that ignore the dimension.
   const bool positive = by_label.begin()->first > 0;
-  std::map<int, int> tag;  // label -> physical tag = entity tag
+  std::map<int, int> tag;  // label -> volume tag
   int k = 0;
   for (const auto& [l, v] : by_label) tag[l] = positive ? l : ++k;
+  const int last_volume = tag.rbegin()->second;
+  const long long room = 2147483647LL - static_cast<long long>(by_pair.size());
+  if (last_volume > room)
+    throw InputError(where + ": material label " + std::to_string(last_volume) + " leaves no room for the " +
+                     std::to_string(by_pair.size()) + " surface tags above it; expected labels up to " +
+                     std::to_string(room));
+  std::map<std::array<int, 2>, int> surface;  // label pair -> surface tag
+  int next = last_volume;
+  for (const auto& [pr, v] : by_pair) surface[pr] = ++next;
 
   std::string o;
   char b[96];
   o += "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n";
   o += std::string("$Comments\nwritten by particlemesh " PM_VERSION ", frame ") + frame_name(frame) +
        " SPACE=" + frame_name(frame) + "\n$EndComments\n";
-  o += "$PhysicalNames\n" + std::to_string(by_label.size()) + "\n";
+  o += "$PhysicalNames\n" + std::to_string(by_label.size() + by_pair.size()) + "\n";
+  for (const auto& [pr, s] : surface)
+    o += "2 " + std::to_string(s) + " \"interface_" + std::to_string(pr[0]) + "_" + std::to_string(pr[1]) + "\"\n";
   for (const auto& [l, v] : by_label) o += "3 " + std::to_string(tag[l]) + " \"material_" + std::to_string(l) + "\"\n";
   o += "$EndPhysicalNames\n";
-  // Entities: 0 points, 0 curves, 0 surfaces, one volume per material with
-  // its bounding box, one physical tag and no bounding surfaces.
-  o += "$Entities\n0 0 0 " + std::to_string(by_label.size()) + "\n";
+  // Entities: 0 points, 0 curves, one surface per label pair (no bounding
+  // curves), one volume per material (no bounding surfaces), each with its
+  // bounding box and one physical tag.
+  o += "$Entities\n0 0 " + std::to_string(by_pair.size()) + " " + std::to_string(by_label.size()) + "\n";
+  for (const auto& [pr, idx] : by_pair) {
+    const std::string s = std::to_string(surface[pr]);
+    o += s + " " + bounding_box(t, t.triangles, idx) + " 1 " + s + " 0\n";
+  }
   for (const auto& [l, idx] : by_label) {
-    Vec3 lo(1e300, 1e300, 1e300), hi(-1e300, -1e300, -1e300);
-    for (std::size_t i : idx)
-      for (int v : t.tets[i])
-        for (int c = 0; c < 3; ++c) {
-          lo[c] = std::min(lo[c], t.vertices[std::size_t(v)][c]);
-          hi[c] = std::max(hi[c], t.vertices[std::size_t(v)][c]);
-        }
-    std::snprintf(b, sizeof b, "%d %.17g %.17g %.17g ", tag[l], lo.x, lo.y, lo.z);
-    o += b;
-    std::snprintf(b, sizeof b, "%.17g %.17g %.17g 1 %d 0\n", hi.x, hi.y, hi.z, tag[l]);
-    o += b;
+    const std::string v = std::to_string(tag[l]);
+    o += v + " " + bounding_box(t, t.tets, idx) + " 1 " + v + " 0\n";
   }
   o += "$EndEntities\n";
   const std::size_t nv = t.vertices.size();
@@ -59,8 +92,10 @@ void write_gmsh(const LabelledTets& t, const std::string& path, WorldFrame frame
     o += b;
   }
   o += "$EndNodes\n";
-  o += "$Elements\n" + std::to_string(by_label.size()) + " " + std::to_string(t.tets.size()) + " 1 " +
-       std::to_string(t.tets.size()) + "\n";
+  // Element tags: the tetrahedra 1..#T, then the triangles #T+1..#T+#B.
+  const std::size_t ne = t.tets.size() + t.triangles.size();
+  o += "$Elements\n" + std::to_string(by_label.size() + by_pair.size()) + " " + std::to_string(ne) + " 1 " +
+       std::to_string(ne) + "\n";
   std::size_t id = 0;
   for (const auto& [l, idx] : by_label) {
     o += "3 " + std::to_string(tag[l]) + " 4 " + std::to_string(idx.size()) + "\n";
@@ -68,6 +103,14 @@ void write_gmsh(const LabelledTets& t, const std::string& path, WorldFrame frame
       const auto& c = t.tets[i];
       o += std::to_string(++id) + " " + std::to_string(c[0] + 1) + " " + std::to_string(c[1] + 1) + " " +
            std::to_string(c[2] + 1) + " " + std::to_string(c[3] + 1) + "\n";
+    }
+  }
+  for (const auto& [pr, idx] : by_pair) {
+    o += "2 " + std::to_string(surface[pr]) + " 2 " + std::to_string(idx.size()) + "\n";
+    for (std::size_t i : idx) {
+      const auto& c = t.triangles[i];
+      o += std::to_string(++id) + " " + std::to_string(c[0] + 1) + " " + std::to_string(c[1] + 1) + " " +
+           std::to_string(c[2] + 1) + "\n";
     }
   }
   o += "$EndElements\n";

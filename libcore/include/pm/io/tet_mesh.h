@@ -4,9 +4,11 @@
 // visualisation tools read. Format by extension (one table, tet_mesh.cpp):
 //   .mesh  MEDIT (Vertices, Triangles with a reference per label pair,
 //          Tetrahedra with the material as reference)
-//   .vtu   VTK XML UnstructuredGrid, cell array `material`
-//   .vtk   VTK legacy UNSTRUCTURED_GRID, cell scalars `material`
+//   .vtu   VTK XML UnstructuredGrid, cell array `material` (tetrahedra only)
+//   .vtk   VTK legacy UNSTRUCTURED_GRID, cell scalars `material` (tetrahedra only)
 //   .msh   Gmsh 4.1 ASCII, one physical volume group per material
+//          ("material_L") and one physical surface group of triangles per
+//          label pair ("interface_A_B")
 // read_tet_mesh reads the same extensions, including what other tools write
 // there (meshio, Gmsh, ParaView; see each format's reader for the variants).
 #include <array>
