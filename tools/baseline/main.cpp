@@ -51,8 +51,8 @@ int main(int argc, char** argv) {
                 "mc: marching cubes of F = iso (OpenVDB volumeToMesh, adaptivity 0, trilinear). cgal: CGAL Mesh_3 "
                 "surface mesh of the image isosurface (facet angle 30, facet distance = size/4, manifold), with the "
                 "facet size given or searched so the vertex count matches --vertices. cgal-labels: CGAL Mesh_3 on a "
-                "label map with the lines where three labels meet protected; writes every interface with face "
-                "properties label_a < label_b (0 = outside). Outputs are closed triangle meshes (.ply .obj .off .stl). "
+                "label map with the lines where three labels meet protected and the outside label (--outside) not "
+                "meshed; writes every interface with face properties label_a < label_b. Outputs are closed triangle meshes (.ply .obj .off .stl). "
                 "With --tets, the cgal modes mesh the volume too (cell radius-edge ratio, optional cell size), then "
                 "run CGAL's sliver perturbation and exudation, and write the labelled tetrahedra; --vertices then "
                 "counts the tetrahedra's vertices.",
@@ -87,6 +87,11 @@ int main(int argc, char** argv) {
                       "with --tets: Mesh_3 cell_size (circumradius bound), world units; 0 = none (cells grade "
                       "away from the surface)")
       ->capture_default_str();
+  std::string outside = "auto";
+  tool.app.add_option("--outside", outside,
+                      "cgal-labels: the label not meshed (the background), or auto: the label at most of the "
+                      "volume's 8 corners")
+      ->capture_default_str();
   tool.app.add_flag("--no-optimise", no_optimise, "with --tets: skip perturb_mesh_3 and exude_mesh_3");
   tool.app.add_option("--optimise-seconds", p.optimise_seconds,
                       "with --tets: time limit of perturbation and of exudation, each, s (0 = none)")
@@ -118,6 +123,17 @@ int main(int argc, char** argv) {
     pm::Mesh m;
     pm::LabelledTets volume;
     pm::Stopwatch clock;
+    if (outside != "auto") {
+      if (mode != "cgal-labels") throw pm::UsageError("--outside is for cgal-labels");
+      std::size_t pos = 0;
+      try {
+        p.outside_label = std::stoi(outside, &pos);
+      } catch (const std::exception&) {
+        pos = 0;
+      }
+      if (pos != outside.size() || p.outside_label < 0)
+        throw pm::UsageError("--outside \"" + outside + "\": expected a non-negative integer label or auto");
+    }
     p.volume = !tets.empty();
     p.optimise = !no_optimise;
     p.facet_size = size;

@@ -242,6 +242,22 @@ void check_params(const CgalMeshParams& p) {
                      std::to_string(p.optimise_seconds));
 }
 
+// The label at most of the 8 corner voxels (ties: the smallest).
+int corner_label(const Volume& v, const std::vector<std::int32_t>& data) {
+  const Dims d = v.dims();
+  std::map<int, int> votes;
+  for (std::size_t k : {std::size_t(0), d.nz - 1})
+    for (std::size_t j : {std::size_t(0), d.ny - 1})
+      for (std::size_t i : {std::size_t(0), d.nx - 1}) ++votes[data[v.index(i, j, k)]];
+  int best = 0, n = -1;
+  for (const auto& [l, c] : votes)
+    if (c > n) {
+      best = l;
+      n = c;
+    }
+  return best;
+}
+
 // Material side as Mesh_3 subdomain 1, outside 0.
 struct SideOf {
   double iso;
@@ -309,6 +325,10 @@ CgalMeshResult cgal_labels(const Volume& input, const CgalMeshParams& p) {
   debug(std::to_string(polylines.size()) + " triple-line polylines protected");
   std::vector<std::int32_t> data(labels.count());
   for (std::size_t i = 0; i < data.size(); ++i) data[i] = std::int32_t(labels.get(i));
+  // CGAL's outside is label 0: the outside label trades places with it.
+  const int outside = p.outside_label >= 0 ? p.outside_label : corner_label(labels, data);
+  if (outside != 0)
+    for (std::int32_t& x : data) x = x == outside ? 0 : (x == 0 ? outside : x);
   CGAL::Image_3 image = make_image<std::int32_t>(labels, WK_FIXED, SGN_SIGNED, data);
   CGAL::get_default_random() = CGAL::Random(unsigned(p.seed));
   FeatureDomain domain = FeatureDomain::create_labeled_image_mesh_domain(image, params::relative_error_bound = 1e-6);
@@ -320,6 +340,24 @@ CgalMeshResult cgal_labels(const Volume& input, const CgalMeshParams& p) {
   res.surface = extract_facets(c3t3, true);
   if (res.surface.faces.empty())
     throw InputError("CGAL Mesh_3 labels baseline: no interface facets; expected at least two labelled regions");
+  if (outside != 0) {
+    auto back = [&](int x) { return x == 0 ? outside : (x == outside ? 0 : x); };
+    auto& la = res.surface.face_ints["label_a"];
+    auto& lb = res.surface.face_ints["label_b"];
+    for (std::size_t f = 0; f < la.size(); ++f) {
+      la[f] = back(la[f]);
+      lb[f] = back(lb[f]);
+      if (la[f] > lb[f]) {  // keep label_a < label_b, the normal from a into b
+        std::swap(la[f], lb[f]);
+        std::swap(res.surface.faces[f][1], res.surface.faces[f][2]);
+      }
+    }
+    for (int& m : res.volume.materials) m = back(m);
+    for (auto& pr : res.volume.triangle_labels) {
+      pr = {back(pr[0]), back(pr[1])};
+      if (pr[0] > pr[1]) std::swap(pr[0], pr[1]);
+    }
+  }
   res.c3t3_vertices = c3t3.triangulation().number_of_vertices();
   res.seconds = clock.seconds();
   res.parallel = kParallel;

@@ -42,6 +42,9 @@ struct CgalMeshParams {
   /// perturbation (perturb_mesh_3) and then sliver exudation (exude_mesh_3),
   /// each measured as its own step.
   bool volume = false;
+  /// Labels: the outside (not meshed; 0 in the output's label pairs stays
+  /// this label). -1: the label at most of the volume's 8 corners.
+  int outside_label = -1;
   double cell_radius_edge = 2;  ///< circumradius / shortest edge bound (CGAL guarantees termination for >= 2)
   double cell_size = 0;         ///< circumradius bound, world units (0: none, the cells grade away from the surface)
   bool optimise = true;         ///< volume: perturb, then exude
@@ -73,8 +76,10 @@ CgalMeshResult cgal_isosurface(const Volume& v, double iso, bool material_below,
 
 /// CGAL Mesh_3 on a label map (Labeled_mesh_domain_3 with polyline features):
 /// the lines where three or more labels meet (triple_lines below) are
-/// protected. Output: every facet between two different labels (0 is the
-/// outside), with face ints label_a < label_b, oriented from label_a to label_b.
+/// protected. The outside label (p.outside_label, by default the label at
+/// most corners; e.g. mickey's background 1) is not meshed. Output: every
+/// facet between two different labels, the outside label included, with face
+/// ints label_a < label_b, oriented from label_a to label_b.
 /// \throw InputError for a non-integer or non axis-aligned volume, a single label.
 CgalMeshResult cgal_labels(const Volume& labels, const CgalMeshParams& p);
 
