@@ -164,13 +164,17 @@ def dataset(args, name, kind, src, mvars, desc, img):
             bl = ["cgal", "-i", os.path.join(out, "work", "sdf.nrrd"), "--iso", "0"]
         else:
             bl = ["cgal-labels", "-i", os.path.join(out, "work", "morph.nrrd")]
-        log(f"{name}: CGAL Mesh_3 at {n} vertices")
-        _, secs = run([os.path.join(args.bin, "baseline")] + bl + ["--vertices", str(n), "--tets", cm, "-q",
-                                                                    "--stats", cj])
-        cs = load(cj)
-        row["cgal"] = summary(measure(args, cm, os.path.join(out, "cgal_volume_quality.json")),
-                              round(cs["seconds_final_run"], 1))
-        row["cgal"]["search_seconds"] = round(secs, 1)
+        cq = os.path.join(out, "cgal_volume_quality.json")
+        if args.reuse and os.path.exists(cq) and os.path.exists(cj):
+            log(f"{name}: CGAL Mesh_3 kept from the last run")
+            cs = load(cj)
+            row["cgal"] = summary(load(cq), round(cs["seconds_final_run"], 1))
+        else:
+            log(f"{name}: CGAL Mesh_3 at {n} vertices")
+            _, secs = run([os.path.join(args.bin, "baseline")] + bl + ["--vertices", str(n), "--tets", cm, "-q",
+                                                                        "--stats", cj])
+            cs = load(cj)
+            row["cgal"] = summary(measure(args, cm, cq), round(cs["seconds_final_run"], 1))
         row["cgal_steps"] = [{"name": s["name"], "vertices": s["vertices"], "seconds": round(s["seconds"], 2),
                               "dihedral_min": s["quality"]["overall"]["dihedral_min"],
                               "dihedral_max": s["quality"]["overall"]["dihedral_max"],
@@ -183,11 +187,21 @@ def dataset(args, name, kind, src, mvars, desc, img):
         log(f"{name}: CGAL {row['cgal_note']}")
     # TetGen alone on our surface.
     try:
-        log(f"{name}: TetGen alone at {n} vertices")
-        tm, maxv, secs, tries = tetgen_alone(args, out, kind, n, q["overall"]["volume"], q["overall"]["tets"])
-        row["tetgen"] = summary(measure(args, tm, os.path.join(out, "tetgen_volume_quality.json")), secs)
-        row["tetgen"]["max_volume"] = maxv
-        row["tetgen_tries"] = tries
+        tq = os.path.join(out, "tetgen_volume_quality.json")
+        tr = os.path.join(out, "work", "tetgen_tries.json")
+        if args.reuse and os.path.exists(tq) and os.path.exists(tr):
+            log(f"{name}: TetGen alone kept from the last run")
+            t = load(tr)
+            row["tetgen"] = summary(load(tq), t["seconds"])
+        else:
+            log(f"{name}: TetGen alone at {n} vertices")
+            tm, maxv, secs, tries = tetgen_alone(args, out, kind, n, q["overall"]["volume"], q["overall"]["tets"])
+            row["tetgen"] = summary(measure(args, tm, tq), secs)
+            t = {"max_volume": maxv, "seconds": secs, "tries": tries}
+            with open(tr, "w") as f:
+                json.dump(t, f)
+        row["tetgen"]["max_volume"] = t["max_volume"]
+        row["tetgen_tries"] = t["tries"]
     except (RuntimeError, KeyError) as e:
         row["tetgen"] = None
         row["tetgen_note"] = f"failed: {str(e).splitlines()[0][:200]}"

@@ -396,6 +396,8 @@ TEST(TetSmooth, OdtRaisesMeanQualityKeepsWorstBoundaryAndVolume) {
   EXPECT_GT(sr.moves, 0u);
   EXPECT_GT(after.overall.rr_mean, before.overall.rr_mean + 0.01);
   EXPECT_GE(after.overall.rr_min, before.overall.rr_min);
+  EXPECT_GE(after.overall.dihedral_min, std::min(before.overall.dihedral_min, 25.0));
+  EXPECT_LE(after.overall.dihedral_max, std::max(before.overall.dihedral_max, 140.0));
   EXPECT_EQ(after.overall.non_positive, 0u);
   for (std::size_t i = 0; i < s.vertices.size(); ++i) EXPECT_EQ(t.vertices[i], r.mesh.vertices[i]);
   EXPECT_NEAR(after.overall.volume, before.overall.volume, 1e-9 * before.overall.volume);

@@ -1,6 +1,7 @@
 #include "pm/mesh/tet_smooth.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <vector>
 
@@ -43,17 +44,35 @@ TetSmoothResult odt_smooth(LabelledTets& t, std::size_t first_free, const TetSmo
       if (std::size_t(v) >= first_free) ring[fill[std::size_t(v) - first_free]++] = k;
 
   auto& X = t.vertices;
-  // Worst radius ratio around vertex i with i at x; -1 when a tetrahedron is not positive.
+  // The worst tetrahedra around vertex i with i at x: smallest radius ratio
+  // (-1 when one is not positive) and the extreme dihedral angles.
+  struct Worst {
+    double rr = 1, dmin = 180, dmax = 0;
+  };
   auto worst = [&](std::size_t i, const Vec3& x) {
-    double w = 1;
+    Worst w;
     for (std::size_t s = start[i - first_free]; s < start[i - first_free + 1]; ++s) {
       const auto& c = t.tets[ring[s]];
       Vec3 q[4];
       for (int k = 0; k < 4; ++k) q[k] = std::size_t(c[std::size_t(k)]) == i ? x : X[std::size_t(c[std::size_t(k)])];
-      if (!(volume6(q[0], q[1], q[2], q[3]) > 0)) return -1.0;
-      w = std::min(w, tet_radius_ratio(q[0], q[1], q[2], q[3]));
+      if (!(volume6(q[0], q[1], q[2], q[3]) > 0)) {
+        w.rr = -1;
+        return w;
+      }
+      w.rr = std::min(w.rr, tet_radius_ratio(q[0], q[1], q[2], q[3]));
+      const std::array<double, 6> d = tet_dihedrals(q[0], q[1], q[2], q[3]);
+      const auto [lo, hi] = std::minmax_element(d.begin(), d.end());
+      w.dmin = std::min(w.dmin, *lo);
+      w.dmax = std::max(w.dmax, *hi);
     }
     return w;
+  };
+  // A move may not lower the worst radius ratio, nor take an angle below
+  // min(the old smallest, kLow) or above max(the old largest, kHigh): the
+  // mesh's extreme angles never get worse and the [25, 140] band is kept.
+  constexpr double kLow = 25, kHigh = 140;
+  auto acceptable = [&](const Worst& now, const Worst& old) {
+    return now.rr >= old.rr && now.dmin >= std::min(old.dmin, kLow) && now.dmax <= std::max(old.dmax, kHigh);
   };
   const std::size_t nfree = nv - first_free;
   for (int sweep = 0; sweep < p.sweeps; ++sweep) {
@@ -73,12 +92,12 @@ TetSmoothResult odt_smooth(LabelledTets& t, std::size_t first_free, const TetSmo
       }
       if (!(vol > 0)) continue;
       const Vec3 target = acc / vol, old = X[i];
-      const double w0 = worst(i, old);
+      const Worst w0 = worst(i, old);
       bool done = false;
       for (double step : {1.0, 0.5}) {
         const Vec3 x = old + (target - old) * step;
         if (!is_finite(x)) continue;
-        if (worst(i, x) >= w0) {
+        if (acceptable(worst(i, x), w0)) {
           X[i] = x;
           done = true;
           break;

@@ -4,9 +4,11 @@
 // triangulation update of Chen and Alliez et al., x_i <- sum_T |T| c_T /
 // sum_T |T| over the tetrahedra T around vertex i (c_T the circumcentre),
 // with the connectivity kept. A move is kept only when every tetrahedron
-// around the vertex stays positively oriented and the worst radius ratio
-// among them does not drop (else half the move is tried, else none), so the
-// mesh's smallest radius ratio never falls and no vertex crosses a face:
+// around the vertex stays positively oriented, the worst radius ratio among
+// them does not drop, and no dihedral angle among them goes below min(their
+// old smallest, 25°) or above max(their old largest, 140°) (else half the
+// move is tried, else none). So the mesh's smallest radius ratio and its
+// extreme dihedral angles never get worse, and no vertex crosses a face:
 // materials and boundary stay as they are. World units.
 #include <cstddef>
 
