@@ -105,6 +105,24 @@ TEST(VolumePacking, FillsABallInsideItsFixedBoundary) {
   EXPECT_LT(double(deep), est * 1.2);
 }
 
+TEST(VolumePacking, ARegionThinnerThanItsSpacingGetsNoParticles) {
+  // A plate 0.1 thick (half-extent 0.05) packed at spacing 1: the seeds keep
+  // 0.7 spacings from the fixed boundary particles, so none fits inside. The
+  // region is left to the tetrahedralisation, with a warning, not an error
+  // (the frog's bones at 2 mm).
+  set_verbosity(Verbosity::quiet);
+  const auto plate = make_implicit("box:a=1,b=1,c=0.05,r=0.01");
+  std::vector<Vec3> fixed;
+  for (int i = -4; i <= 4; ++i)
+    for (int j = -4; j <= 4; ++j)
+      for (double z : {-0.05, 0.05}) fixed.push_back({0.25 * i, 0.25 * j, z});
+  const VolumePackResult r = pack_volume(*plate, 0.0, fixed, params(1.0));
+  EXPECT_EQ(r.seeds, 0u);
+  EXPECT_TRUE(r.points.empty());
+  EXPECT_EQ(r.fixed, fixed.size());
+  EXPECT_TRUE(r.converged);
+}
+
 TEST(VolumePacking, SameBytesForAnyThreadCount) {
   set_verbosity(Verbosity::quiet);
   const auto ball = make_implicit("sphere:r=1");
