@@ -29,8 +29,14 @@ CH6 = {name: (src, mvars, desc) for name, src, mvars, desc in results_ch6.DATASE
 # name, kind (surface: `tets`; materials: `materials-tets`), input, make variables, description
 DATASETS = [
     ("brain", "surface", "iso2mesh-head/derived/brain.nrrd", {}, "iso2mesh brain mask, 256^3, 1 mm (one material)"),
+    ("skull", "surface", "cgal-skull/skull_2.9.inr", {"ISO": "2.9"}, "CGAL skull, 64^3 grey levels, isovalue 2.9"),
+    ("ct-bone", "surface", "vtk-headsq/derived/headsq_quarter.nrrd", {"ISO": "1150", "TIGHTEN": "1",
+                                                                     "MIN_COMPONENT": "20"},
+     "VTK headsq CT bone at 1150 (quarter resolution), thresholded, cleaned and tightened"),
     ("mickey", "materials") + CH6["mickey"],
+    ("spheres", "materials") + CH6["spheres"],
     ("frog5", "materials") + CH6["frog5"],
+    ("frog15", "materials") + CH6["frog15"],
     ("head", "materials") + CH6["head"],
 ]
 
@@ -94,6 +100,16 @@ def render(args, mesh, png):
          "--size", "900x900", "-q"], ok=(0, 1))
 
 
+def field_args(out):
+    """The field the surface pipeline sampled: its signed distance (masks), else the input at ISO."""
+    tl = load(os.path.join(out, "work", "tetlabel.json"))
+    p = tl.get("parameters", {})
+    sdf = os.path.join(out, "work", "sdf.nrrd")
+    if os.path.exists(sdf):
+        return ["-i", sdf, "--iso", "0"]
+    return ["-i", tl["inputs"][-1], "--iso", str(p["iso"])]
+
+
 def tetgen_alone(args, out, kind, target, our_volume, our_tets):
     """TetGen -q/-O on our surface with no interior points, -a searched for the vertex count."""
     empty = os.path.join(out, "work", "no_points.ply")
@@ -104,7 +120,7 @@ def tetgen_alone(args, out, kind, target, our_volume, our_tets):
     surf = os.path.join(out, "surface.ply" if kind == "surface" else "interfaces.ply")
     base = [os.path.join(args.bin, "tetlabel"), empty, "--conform", surf, "--smooth", "0", "-q"]
     if kind == "surface":
-        base += ["-i", os.path.join(out, "work", "sdf.nrrd"), "--iso", "0"]
+        base += field_args(out)
     else:
         base += ["--materials", tl["parameters"]["materials"]]
     mesh = os.path.join(out, "tetgen_volume.mesh")
@@ -128,7 +144,7 @@ def tetgen_alone(args, out, kind, target, our_volume, our_tets):
 
 
 def dataset(args, name, kind, src, mvars, desc, img):
-    probe = os.path.join(SHARED, "iso2mesh-head" if src == "nested" else src)
+    probe = os.path.join(SHARED, {"nested": "iso2mesh-head", "spheres": "cleaver-spheres"}.get(src, src))
     if not os.path.exists(probe):
         log(f"{name}: {probe} not present, skipped")
         return None
@@ -161,7 +177,7 @@ def dataset(args, name, kind, src, mvars, desc, img):
         cj = os.path.join(out, "cgal_volume.json")
         cm = os.path.join(out, "cgal_volume.mesh")
         if kind == "surface":
-            bl = ["cgal", "-i", os.path.join(out, "work", "sdf.nrrd"), "--iso", "0"]
+            bl = ["cgal"] + field_args(out)
         else:
             bl = ["cgal-labels", "-i", os.path.join(out, "work", "morph.nrrd")]
         cq = os.path.join(out, "cgal_volume_quality.json")

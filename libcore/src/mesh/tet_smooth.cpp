@@ -113,6 +113,74 @@ TetSmoothResult odt_smooth(LabelledTets& t, std::size_t first_free, const TetSmo
     ++r.sweeps;
     if (double(moved) < p.stop_fraction * double(nfree)) break;
   }
+  if (p.perturb_below <= 0 && p.perturb_above >= 180) return r;
+  // Sliver perturbation: each free vertex of a tetrahedron outside
+  // [perturb_below, perturb_above] climbs to raise the worst angle margin
+  // min(smallest dihedral / below, (180° - largest) / (180° - above)) among
+  // its tetrahedra: compass
+  // search over 14 directions, the step halved when none improves. The two
+  // margins are relative to their bounds, so fixing a small angle cannot
+  // open a large one past its bound (nor the other way).
+  constexpr double kRatioFloor = 0.25;
+  const double low = std::max(p.perturb_below, 1.0), high = std::max(180 - p.perturb_above, 1.0);
+  auto margin = [&](std::size_t i, const Vec3& x) {
+    double m = 1e300;
+    for (std::size_t s = start[i - first_free]; s < start[i - first_free + 1]; ++s) {
+      const auto& c = t.tets[ring[s]];
+      Vec3 q[4];
+      for (int k = 0; k < 4; ++k) q[k] = std::size_t(c[std::size_t(k)]) == i ? x : X[std::size_t(c[std::size_t(k)])];
+      if (!(volume6(q[0], q[1], q[2], q[3]) > 0)) return -1.0;
+      const std::array<double, 6> d = tet_dihedrals(q[0], q[1], q[2], q[3]);
+      const auto [lo, hi] = std::minmax_element(d.begin(), d.end());
+      m = std::min(m, std::min(*lo / low, (180 - *hi) / high));
+    }
+    return m;
+  };
+  std::vector<Vec3> dirs;
+  for (int a = 0; a < 3; ++a)
+    for (double sgn : {-1.0, 1.0}) {
+      Vec3 e(0, 0, 0);
+      e[a] = sgn;
+      dirs.push_back(e);
+    }
+  for (double x : {-1.0, 1.0})
+    for (double y : {-1.0, 1.0})
+      for (double z : {-1.0, 1.0}) dirs.push_back(Vec3(x, y, z) / std::sqrt(3.0));
+  std::vector<std::size_t> todo;
+  for (const auto& c : t.tets) {
+    const std::array<double, 6> d = tet_dihedrals(X[std::size_t(c[0])], X[std::size_t(c[1])], X[std::size_t(c[2])],
+                                                  X[std::size_t(c[3])]);
+    const auto [lo, hi] = std::minmax_element(d.begin(), d.end());
+    if (*lo >= p.perturb_below && *hi <= p.perturb_above) continue;
+    for (int v : c)
+      if (std::size_t(v) >= first_free) todo.push_back(std::size_t(v));
+  }
+  std::sort(todo.begin(), todo.end());
+  todo.erase(std::unique(todo.begin(), todo.end()), todo.end());
+  for (std::size_t i : todo) {
+    double shortest = 1e300;
+    for (std::size_t s = start[i - first_free]; s < start[i - first_free + 1]; ++s)
+      for (int v : t.tets[ring[s]])
+        if (std::size_t(v) != i) shortest = std::min(shortest, norm(X[std::size_t(v)] - X[i]));
+    double step = 0.2 * shortest, best = margin(i, X[i]);
+    // The radius ratio around the vertex may not fall below min(its old worst, kRatioFloor).
+    const double rr_floor = std::min(worst(i, X[i]).rr, kRatioFloor);
+    bool improved = false;
+    for (int it = 0; it < 40 && step > 1e-3 * shortest; ++it) {
+      bool found = false;
+      for (const Vec3& e : dirs) {
+        const Vec3 x = X[i] + e * step;
+        const double m = margin(i, x);
+        if (m > best && worst(i, x).rr >= rr_floor) {
+          best = m;
+          X[i] = x;
+          found = improved = true;
+        }
+      }
+      if (!found) step *= 0.5;
+    }
+    r.perturbed += improved;
+  }
   return r;
 }
 
