@@ -36,8 +36,8 @@ DATASETS = [
     ("mickey", "materials") + CH6["mickey"],
     ("spheres", "materials") + CH6["spheres"],
     ("frog5", "materials") + CH6["frog5"],
-    ("frog15", "materials") + CH6["frog15"],
     ("head", "materials") + CH6["head"],
+    ("frog15", "materials") + CH6["frog15"],
 ]
 
 TARGETS = ("dihedral angles in [12°, 160°], >= 99% of tetrahedra with all six in [25°, 140°], radius ratio "

@@ -69,7 +69,7 @@ pm_cli_test(particles.bad_output "particles: usage error: --output .*pm_p.xyz.*:
 pm_cli_test(particles.volume_needs_fixed "particles: usage error: --volume needs --fixed SURFACE" ${PT} --volume --implicit sphere --spacing 0.3 -o /tmp/pm_pv.ply)
 pm_cli_test(particles.volume_fixed_missing "particles: error: .*nope.ply.*no such file" ${PT} --volume --implicit sphere --spacing 0.3 --fixed ${D}/nope.ply -o /tmp/pm_pv.ply)
 pm_cli_test(particles.volume_needs_size "particles: usage error: --volume needs --sizing H or --spacing S" ${PT} --volume --implicit sphere --fixed ${D}/sphere_points.ply -o /tmp/pm_pv.ply)
-pm_cli_test(particles.fixed_needs_volume "particles: usage error: --materials and --fixed need --volume" ${PT} --implicit sphere --spacing 0.3 --fixed ${D}/sphere_points.ply -o /tmp/pm_pv.ply)
+pm_cli_test(particles.fixed_needs_volume "particles: usage error: --materials, --fixed and --inside need --volume" ${PT} --implicit sphere --spacing 0.3 --fixed ${D}/sphere_points.ply -o /tmp/pm_pv.ply)
 pm_cli_test(particles.volume_no_faces_labels "particles: error: .*sphere_points.ply.* has no face properties label_a and label_b" ${PT} --volume --materials ${D}/wedges3.nrrd --spacing 0.3 --fixed ${D}/sphere_points.ply -o /tmp/pm_pv.ply)
 pm_cli_test(particles.sizing_and_spacing "particles: usage error: give --spacing or --sizing, not both" ${PT} --implicit sphere --spacing 0.3 --sizing ${PTD}/onevoxel.nrrd -o /tmp/pm_p.ply)
 pm_cli_script(particles.workflow particles_test.sh)

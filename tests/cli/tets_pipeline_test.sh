@@ -20,6 +20,23 @@ z, y, x = np.mgrid[0:28, 0:28, 0:28] - 13.5
 r = np.sqrt(x * x + y * y + z * z)
 nrrd(f"{T}/ball.nrrd", (r < 10).astype(np.uint8), 1)
 nrrd(f"{T}/nested.nrrd", np.where(r < 5.5, 2, np.where(r < 11, 1, 0)).astype(np.uint8), 1)
+# A grey-level ball, material above the isovalue (as in CT): 200 exp(-(r/9)^2) = 100 at r = 9 sqrt(ln 2).
+nrrd(f"{T}/grey.nrrd", np.round(200 * np.exp(-(r / 9) ** 2)).astype(np.uint8), 1)
+PY
+# Grey level: the packing must fill the material side (F > ISO), not the outside.
+make -s -f "$SRC/Makefile.pipeline" tets INPUT="$T/grey.nrrd" ISO=100 OUT="$T/grey" BIN="$BIN" TETS=mesh \
+  REQUIRE_TETS="positive,boundary_manifold" 2> "$T/grey.err" || { cat "$T/grey.err" >&2; exit 1; }
+/usr/bin/python3 - "$T/grey" <<'PY'
+import json, sys
+import numpy as np
+import meshio
+d = sys.argv[1]
+ip = meshio.read(f"{d}/interior.ply").points
+r = np.linalg.norm(ip - 13.5, axis=1)
+R = 9 * np.sqrt(np.log(2))  # the isosurface, to voxel rounding of the values
+assert len(ip) > 10 and (r < R + 0.5).all(), (len(ip), r.max(), R)
+c = json.load(open(f"{d}/work/tets.json"))["counts"]
+assert c["interior_outside"] == 0 and c["interior_kept"] > 0.9 * len(ip), c
 PY
 make -s -f "$SRC/Makefile.pipeline" tets INPUT="$T/ball.nrrd" OUT="$T/ball" BIN="$BIN" TETS=vtu \
   REQUIRE_TETS="positive,boundary_manifold,dihedral_min>=12,dihedral_max<=160,share_25_140>=0.99,rr_mean>=0.8" \

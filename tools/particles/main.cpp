@@ -166,12 +166,18 @@ int main(int argc, char** argv) {
   bool volume = false;
   pm::VolumeRun vr;
   pm::MaterialOptions mo;
-  tool.app.add_flag("--volume", volume, "Chapter 7 volume packing: free particles inside F < iso (or inside every "
+  tool.app.add_flag("--volume", volume, "Chapter 7 volume packing: free particles inside the material side of iso "
+                                         "(--inside; or inside every "
                                          "material of --materials), 12 ideal neighbours, repelled by the fixed "
                                          "vertices of --fixed; spacing from --sizing (e.g. gradlimit --inward) or "
                                          "--spacing. Output: x y z, spacing, label");
   tool.app.add_option("--fixed", vr.fixed, "With --volume: the final surface or interface mesh (.ply from tetlabel); "
                                            "its vertices stay fixed and bound the packing");
+  tool.app.add_option("--inside", vr.inside,
+                      "With --volume -i/--implicit: which side is the material: below (F < iso, distance fields), "
+                      "above (F > iso, masks, CT) or auto (the side the domain's corners are not on)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "below", "above"}));
   pm::add_material_options(tool.app, mo, false, "--material-kernel");
   tool.app.add_option("--outside", vr.outside, "With --volume --materials: the label not packed (auto = the "
                                                "material touching the volume's border)")
@@ -208,7 +214,8 @@ int main(int argc, char** argv) {
       vr.frame = frame;
       return pm::run_volume(vr);
     }
-    if (!mo.spec.empty() || !vr.fixed.empty()) throw pm::UsageError("--materials and --fixed need --volume");
+    if (!mo.spec.empty() || !vr.fixed.empty() || vr.inside != "auto")
+      throw pm::UsageError("--materials, --fixed and --inside need --volume");
     if (!scenario.empty()) {
       if (!input.empty() || !implicit.empty() || !hp_field.empty())
         throw pm::UsageError("--scenario takes no -i, --implicit or --field");

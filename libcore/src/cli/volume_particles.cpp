@@ -5,6 +5,7 @@
 #include "pm/base/error.h"
 #include "pm/base/log.h"
 #include "pm/base/stats.h"
+#include "pm/field/field.h"
 #include "pm/field/sizing.h"
 #include "pm/io/mesh.h"
 #include "pm/io/volume_io.h"
@@ -27,10 +28,19 @@ void run_volume(VolumeRun run) {
   }
   VolumePackResult r;
   int outside = 0;
+  bool below = true;
   {
     ScopedStage stage("pack");
     if (run.field) {
-      r = pack_volume(*run.field, run.iso, boundary.vertices, run.params, 1);
+      if (run.inside != "auto" && run.inside != "below" && run.inside != "above")
+        throw UsageError("--inside \"" + run.inside + "\": expected below, above or auto");
+      below = run.inside == "auto" ? material_below_iso(*run.field, run.iso) : run.inside == "below";
+      if (below) {
+        r = pack_volume(*run.field, run.iso, boundary.vertices, run.params, 1);
+      } else {
+        const NegatedField neg(*run.field);  // material F > iso is -F < -iso
+        r = pack_volume(neg, -run.iso, boundary.vertices, run.params, 1);
+      }
     } else {
       const MaterialSet ms = load_materials(*run.materials);
       outside = parse_outside_label(run.outside, ms);
@@ -54,7 +64,7 @@ void run_volume(VolumeRun run) {
     write_mesh(out, run.output, {true, run.frame});
   }
   st["outputs"] = {run.output};
-  st["parameters"] = {{"iso", run.iso}, {"spacing", run.params.spacing}, {"tolerance", run.params.tolerance},
+  st["parameters"] = {{"iso", run.iso}, {"inside", below ? "below" : "above"}, {"spacing", run.params.spacing}, {"tolerance", run.params.tolerance},
                       {"max_iters", run.params.max_iters}, {"seed_clearance", run.params.seed_clearance},
                       {"outside", outside}};
   st["counts"] = {{"particles", r.points.size()}, {"fixed", r.fixed}, {"seeds", r.seeds},

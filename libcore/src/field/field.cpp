@@ -24,4 +24,39 @@ bool material_below_iso(const ScalarField& f, double iso) {
   return above >= 4;
 }
 
+double NegatedField::value_gradient(const Vec3& x, Vec3& grad) const {
+  const double v = f_.value_gradient(x, grad);
+  grad = -grad;
+  return -v;
+}
+
+double NegatedField::evaluate(const Vec3& x, Vec3& grad, Mat3& hess) const {
+  const double v = f_.evaluate(x, grad, hess);
+  grad = -grad;
+  hess = hess * -1.0;
+  return -v;
+}
+
+void NegatedField::value_batch(const Vec3* x, std::size_t n, double* f) const {
+  f_.value_batch(x, n, f);
+  for (std::size_t k = 0; k < n; ++k) f[k] = -f[k];
+}
+
+void NegatedField::value_gradient_batch(const Vec3* x, std::size_t n, double* f, Vec3* grad) const {
+  f_.value_gradient_batch(x, n, f, grad);
+  for (std::size_t k = 0; k < n; ++k) {
+    f[k] = -f[k];
+    grad[k] = -grad[k];
+  }
+}
+
+void NegatedField::evaluate_batch(const Vec3* x, std::size_t n, double* f, Vec3* grad, Mat3* hess) const {
+  f_.evaluate_batch(x, n, f, grad, hess);
+  for (std::size_t k = 0; k < n; ++k) {
+    f[k] = -f[k];
+    grad[k] = -grad[k];
+    hess[k] = hess[k] * -1.0;
+  }
+}
+
 }  // namespace pm

@@ -15,31 +15,6 @@
 namespace pm {
 namespace {
 
-/// -F: turns a field positive inside into one negative inside.
-class NegatedField : public ScalarField {
- public:
-  explicit NegatedField(std::unique_ptr<ScalarField> f) : f_(std::move(f)) {}
-  double value(const Vec3& x) const override { return -f_->value(x); }
-  double value_gradient(const Vec3& x, Vec3& g) const override {
-    const double v = f_->value_gradient(x, g);
-    g = -g;
-    return -v;
-  }
-  double evaluate(const Vec3& x, Vec3& g, Mat3& h) const override {
-    const double v = f_->evaluate(x, g, h);
-    g = -g;
-    for (auto& row : h.m)
-      for (double& e : row) e = -e;
-    return -v;
-  }
-  Box domain() const override { return f_->domain(); }
-  double resolution() const override { return f_->resolution(); }
-  std::string describe() const override { return "-(" + f_->describe() + ")"; }
-
- private:
-  std::unique_ptr<ScalarField> f_;
-};
-
 std::string trim(const std::string& s) {
   const auto a = s.find_first_not_of(" \t");
   if (a == std::string::npos) return {};
@@ -286,7 +261,7 @@ MaterialSet load_materials(const std::string& spec_in, Kernel kernel) {
     auto vf = std::make_unique<VolumeField>(v, kernel_params(kernel), path);
     ms.labels.push_back(label);
     if (positive)
-      ms.fields.push_back(std::make_shared<NegatedField>(std::move(vf)));
+      ms.fields.push_back(std::make_shared<NegatedField>(std::shared_ptr<const ScalarField>(std::move(vf))));
     else
       ms.fields.push_back(std::shared_ptr<const ScalarField>(std::move(vf)));
   }

@@ -14,8 +14,11 @@
 namespace pm {
 
 struct VolumeRun {
-  const ScalarField* field = nullptr;  ///< one region (F < iso), or null with materials
+  const ScalarField* field = nullptr;  ///< one region (the `inside` side of iso), or null with materials
   double iso = 0;
+  /// One region: which side is the material, "below" (F < iso, distance
+  /// fields), "above" (masks, CT) or "auto" (pm::material_below_iso).
+  std::string inside = "auto";
   const MaterialOptions* materials = nullptr;  ///< several materials, or null
   std::string outside = "auto";        ///< materials: the label not packed (auto: pm::auto_outside_label)
   std::string fixed;                   ///< surface / interface mesh whose vertices are fixed

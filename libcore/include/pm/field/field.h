@@ -3,6 +3,7 @@
 // volumes. Everything is in world units. Surfaces are level sets F = iso with
 // F < iso inside by convention (distance fields: negative inside).
 #include <cstddef>
+#include <memory>
 #include <string>
 
 #include "pm/base/vec.h"
@@ -41,5 +42,27 @@ class ScalarField {
 /// eight corners of the field's domain, which are taken to be outside: the
 /// material is below iso when at least four corners are above it.
 bool material_below_iso(const ScalarField& f, double iso);
+
+/// -F: turns a material above iso (masks, CT, indicators positive inside)
+/// into one below -iso, the convention of the constraints. Either refers to
+/// `f` (which must outlive it) or shares ownership of it.
+class NegatedField final : public ScalarField {
+ public:
+  explicit NegatedField(const ScalarField& f) : f_(f) {}
+  explicit NegatedField(std::shared_ptr<const ScalarField> f) : owned_(std::move(f)), f_(*owned_) {}
+  double value(const Vec3& x) const override { return -f_.value(x); }
+  double value_gradient(const Vec3& x, Vec3& grad) const override;
+  double evaluate(const Vec3& x, Vec3& grad, Mat3& hess) const override;
+  void value_batch(const Vec3* x, std::size_t n, double* f) const override;
+  void value_gradient_batch(const Vec3* x, std::size_t n, double* f, Vec3* grad) const override;
+  void evaluate_batch(const Vec3* x, std::size_t n, double* f, Vec3* grad, Mat3* hess) const override;
+  Box domain() const override { return f_.domain(); }
+  double resolution() const override { return f_.resolution(); }
+  std::string describe() const override { return "-(" + f_.describe() + ")"; }
+
+ private:
+  std::shared_ptr<const ScalarField> owned_;
+  const ScalarField& f_;
+};
 
 }  // namespace pm
