@@ -68,6 +68,11 @@ void add_conform_options(CLI::App& app, ConformRun& r) {
       ->check(CLI::Range(1, 5));
   app.add_flag("--optimise,!--no-optimise", r.params.optimise,
                "With --conform: sliver removal (TetGen's flips and interior-vertex smoothing; default on)");
+  app.add_option("--exude-rounds", r.params.exude_rounds,
+                 "With --conform: times the interior points of tetrahedra still outside [12, 160] degrees are "
+                 "removed and the volume meshed again (the best meshing is kept); 0 = never")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 5));
   app.add_option("--smooth", r.params.smooth_sweeps,
                  "With --conform: sweeps of ODT smoothing of the interior vertices at the end (moves that keep "
                  "every tetrahedron positive and do not lower the worst radius ratio around the vertex); 0 = none")

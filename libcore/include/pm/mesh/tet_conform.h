@@ -60,8 +60,9 @@ struct ConformParams {
   /// After meshing, interior points (not boundary vertices or Steiner
   /// points) of tetrahedra with a dihedral angle below exude_below or above
   /// exude_above (degrees) are removed and the volume is meshed again, up to
-  /// exude_rounds times (0 = never).
-  int exude_rounds = 2;
+  /// exude_rounds times (0 = never). One round, then the smoothing's sliver
+  /// perturbation: frog5 15.1..152.0 degrees in 95 s; none: 14.6..159.9 in 58 s.
+  int exude_rounds = 1;
   double exude_below = 12, exude_above = 160;
   /// Of the meshings (1 + exude rounds), the one with the fewest tetrahedra
   /// outside [exude_below, exude_above] is kept. Then ODT smoothing of the
