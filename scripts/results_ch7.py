@@ -15,9 +15,7 @@ import argparse
 import json
 import os
 import shutil
-import subprocess
 import sys
-import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SHARED = os.path.normpath(os.path.join(ROOT, "..", "shared", "data"))
@@ -52,18 +50,9 @@ def log(msg):
     print(f"results_ch7: {msg}", file=sys.stderr, flush=True)
 
 
-def run(cmd, ok=(0,)):
-    t = time.perf_counter()
-    p = subprocess.run(cmd, capture_output=True, text=True)
-    dt = time.perf_counter() - t
-    if p.returncode not in ok:
-        raise RuntimeError(f"{' '.join(cmd)} failed ({p.returncode}): {p.stderr.strip()[-1200:]}")
-    return p, dt
-
-
-def load(path):
-    with open(path) as f:
-        return json.load(f)
+# One way to run a tool and read its JSON, shared with Chapter 6's script.
+run = results_ch6.run
+load = results_ch6.load
 
 
 def seconds(out, stages):
