@@ -323,6 +323,52 @@ def case_ch6():
 CASES["ch6"] = case_ch6
 
 
+def case_tets():
+    """Issue #19: volume meshes (make materials-tets as scripts/results_ch7.py runs it, 2 threads) on mickey and
+    frog5: interior sizing + packing + conforming tetrahedra against the surface pipeline's own stage time
+    (target <= 2x), the quality targets, and CGAL Mesh_3 (--tets: perturb + exude) at the same vertex count.
+    PM_BENCH_TETS picks the data sets (default mickey,frog5)."""
+    sys.path.insert(0, os.path.join(ROOT, "scripts"))
+    import results_ch6
+    import results_ch7  # the same stage lists as docs/RESULTS.md's time table
+    sets = {name: (src, mvars) for name, src, mvars, _ in results_ch6.DATASETS}
+    for name in os.environ.get("PM_BENCH_TETS", "mickey,frog5").split(","):
+        src, mvars = sets[name]
+        inp = os.path.join(SHARED, src)
+        if not os.path.exists(inp):
+            row("tets", name, None, "", note="../shared/data absent: skipped")
+            continue
+        with tempfile.TemporaryDirectory() as tmp:
+            out = os.path.join(tmp, name)
+            run(["make", "-s", "-f", os.path.join(ROOT, "Makefile.pipeline"), "materials-tets", f"INPUT={inp}",
+                 f"OUT={out}", f"BIN={BIN}", "THREADS=2", "QUIET=1", "TETS=mesh"] +
+                [f"{k}={v}" for k, v in mvars.items()])
+            surf = sum(results_ch7.seconds(out, results_ch7.SURFACE_STAGES).values())
+            vol = stage_rows("tets", out, results_ch7.VOLUME_STAGES, 1)
+            q = json.load(open(os.path.join(out, "volume_quality.json")))
+            o = q["overall"]
+            row("tets", f"{name}: volume stages / surface stages", round(vol / surf, 2), "x", "<= 2",
+                vol <= 2 * surf, f"{vol:.1f} s against {surf:.1f} s; {q['vertices']} vertices, {o['tets']} tetrahedra")
+            ok = (o["dihedral_min"] >= 12 and o["dihedral_max"] <= 160 and o["share_25_140"] >= 0.99
+                  and o["rr_mean"] >= 0.8 and q["positive"])
+            row("tets", f"{name}: dihedral min / max, % in [25, 140], rr mean",
+                f"{o['dihedral_min']:.1f} / {o['dihedral_max']:.1f} / {100 * o['share_25_140']:.2f} / "
+                f"{o['rr_mean']:.3f}", "", ">= 12 / <= 160 / >= 99 / >= 0.80", ok)
+            cg = os.path.join(out, "cgal.json")
+            run([os.path.join(BIN, "baseline"), "cgal-labels", "-i", os.path.join(out, "work", "morph.nrrd"),
+                 "--vertices", str(q["vertices"]), "--tets", os.path.join(out, "cgal.mesh"), "--stats", cg, "-q",
+                 "--threads", "2"])
+            c = json.load(open(cg))
+            co = c["quality"]["overall"]
+            row("tets", f"{name}: CGAL Mesh_3 --tets, same label map and vertex count", round(c["seconds_final_run"], 1),
+                "s", note=f"{c['counts']['tet_vertices']} vertices; dihedral {co['dihedral_min']:.1f} / "
+                          f"{co['dihedral_max']:.1f}, {100 * co['share_25_140']:.2f}% in [25, 140], rr mean "
+                          f"{co['rr_mean']:.3f}")
+
+
+CASES["tets"] = case_tets
+
+
 def case_hp():
     """Issue #18: chan3D (u = 1 - z^2, 6 tets, 4 modes) at about 5k particles in under 5 s on 2 threads."""
     chan = os.path.join(SHARED, "nektar-highorder")
@@ -345,7 +391,7 @@ def case_hp():
 
 
 CASES["hp"] = case_hp
-OPT_IN = {"hp"}  # run only when named: scripts/bench hp
+OPT_IN = {"hp", "tets"}  # run only when named: scripts/bench hp tets
 
 
 def main():
