@@ -435,16 +435,6 @@ LabelledTets assemble(const Snapshot& s, const Vote& v, int outside, const Regis
   return lt;
 }
 
-double share_25_140(const LabelledTets& lt) {
-  if (lt.tets.empty()) return 0;
-  std::size_t in = 0;
-  for (const auto& t : lt.tets) {
-    const auto d = tet_dihedrals(lt.vertices[t[0]], lt.vertices[t[1]], lt.vertices[t[2]], lt.vertices[t[3]]);
-    in += std::all_of(d.begin(), d.end(), [](double a) { return a >= 25 && a <= 140; });
-  }
-  return double(in) / double(lt.tets.size());
-}
-
 // The faces where the material changes must be the input triangles, with
 // the label pairs of the materials on their two sides.
 void check_faces(const LabelledTets& lt, const TetQuality& q, int outside, int boundary_vertices,
@@ -611,7 +601,7 @@ ConformResult conforming_tets(const Mesh& boundary, const std::vector<std::array
     check_faces(res.mesh, st.quality, outside_label, int(b.vertices.size()), name, what);
     st.vertices = res.mesh.vertices.size();
     st.tets = res.mesh.tets.size();
-    st.share_25_140 = share_25_140(res.mesh);
+    st.share_25_140 = st.quality.overall.share_25_140();  // counted by tet_quality
     if (p.progress) {
       const TetStats& o = st.quality.overall;
       info("conform " + name + ": " + std::to_string(st.tets) + " tetrahedra, " + std::to_string(st.vertices) +
@@ -797,7 +787,7 @@ ConformResult conforming_tets(const Mesh& boundary, const std::vector<std::array
     st.vertices = res.mesh.vertices.size();
     st.tets = res.mesh.tets.size();
     st.steiner_points = res.steiner_points;
-    st.share_25_140 = share_25_140(res.mesh);
+    st.share_25_140 = st.quality.overall.share_25_140();  // counted by tet_quality
     res.smooth_moves = sr.moves;
     if (p.progress) {
       const TetStats& o = st.quality.overall;
