@@ -18,12 +18,6 @@
 namespace pm {
 namespace {
 
-std::string num(double v) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%g", v);
-  return b;
-}
-
 // Particles in reference space on any ReferenceField (a Nektar++ field or a
 // built-in Chapter 4 scenario), written as a double-precision PLY.
 void run_reference(const ReferenceField& field, const ParticleParams& p, const std::string& output) {
@@ -81,7 +75,7 @@ void run_reference(const ReferenceField& field, const ParticleParams& p, const s
     warn("not converged after " + std::to_string(r.iterations) + " iterations (--max-iters " +
              std::to_string(p.max_iters) + "); the result was written anyway");
   info(std::to_string(r.positions.size()) + " particles on " + field.describe() + ", max |u - iso| " +
-           num(worst) + ", " + std::to_string(r.field_evaluations) + " field evaluations");
+           format_number(worst) + ", " + std::to_string(r.field_evaluations) + " field evaluations");
 }
 
 }  // namespace

@@ -24,12 +24,6 @@
 namespace pm {
 namespace {
 
-std::string num(double v) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%g", v);
-  return b;
-}
-
 std::uint64_t edge_key(int a, int b) {
   if (a > b) std::swap(a, b);
   return (std::uint64_t(std::uint32_t(a)) << 32) | std::uint32_t(b);
@@ -164,23 +158,23 @@ class TriangleGrid {
 
 void check_params(const ConformParams& p) {
   if (!(p.min_dihedral >= 0 && p.min_dihedral < 60))
-    throw UsageError("conforming_tets: min_dihedral " + num(p.min_dihedral) +
+    throw UsageError("conforming_tets: min_dihedral " + format_number(p.min_dihedral) +
                      " degrees; expected 0 (no refinement) to below 60 (a regular tetrahedron has 70.5)");
   if (p.min_dihedral > 0 && !(p.radius_edge > 1 && std::isfinite(p.radius_edge)))
-    throw UsageError("conforming_tets: radius-edge bound " + num(p.radius_edge) + "; expected a finite value > 1");
+    throw UsageError("conforming_tets: radius-edge bound " + format_number(p.radius_edge) + "; expected a finite value > 1");
   if (p.optimise && !(p.max_dihedral > 90 && p.max_dihedral < 180))
-    throw UsageError("conforming_tets: max_dihedral " + num(p.max_dihedral) +
+    throw UsageError("conforming_tets: max_dihedral " + format_number(p.max_dihedral) +
                      " degrees; expected a value in (90, 180)");
   if (p.optimise && (p.optimise_level < 1 || p.optimise_level > 9))
     throw UsageError("conforming_tets: optimise level " + std::to_string(p.optimise_level) + "; expected 1 to 9");
   if (p.rounds < 1 || p.rounds > 5)
     throw UsageError("conforming_tets: " + std::to_string(p.rounds) + " rounds; expected 1 to 5");
   if (!(p.max_volume >= 0 && std::isfinite(p.max_volume)))
-    throw UsageError("conforming_tets: max volume " + num(p.max_volume) + " world units^3; expected >= 0 (0: none)");
+    throw UsageError("conforming_tets: max volume " + format_number(p.max_volume) + " world units^3; expected >= 0 (0: none)");
   if (p.smooth_sweeps < 0)
     throw UsageError("conforming_tets: " + std::to_string(p.smooth_sweeps) + " smoothing sweeps; expected >= 0");
   if (!(p.point_tolerance > 0 && p.point_tolerance < 0.1))
-    throw UsageError("conforming_tets: point tolerance " + num(p.point_tolerance) +
+    throw UsageError("conforming_tets: point tolerance " + format_number(p.point_tolerance) +
                      " (relative to the bounding-box diagonal); expected a value in (0, 0.1)");
 }
 
@@ -605,9 +599,9 @@ ConformResult conforming_tets(const Mesh& boundary, const std::vector<std::array
     if (p.progress) {
       const TetStats& o = st.quality.overall;
       info("conform " + name + ": " + std::to_string(st.tets) + " tetrahedra, " + std::to_string(st.vertices) +
-           " vertices (" + std::to_string(st.steiner_points) + " Steiner), dihedral " + num(o.dihedral_min) + ".." +
-           num(o.dihedral_max) + " deg, " + num(100 * st.share_25_140) + "% in [25, 140], radius ratio mean " +
-           num(o.rr_mean) + ", " + num(seconds) + " s");
+           " vertices (" + std::to_string(st.steiner_points) + " Steiner), dihedral " + format_number(o.dihedral_min) + ".." +
+           format_number(o.dihedral_max) + " deg, " + format_number(100 * st.share_25_140) + "% in [25, 140], radius ratio mean " +
+           format_number(o.rr_mean) + ", " + format_number(seconds) + " s");
     }
     res.steps.push_back(st);
   };
@@ -671,8 +665,8 @@ ConformResult conforming_tets(const Mesh& boundary, const std::vector<std::array
       out = std::make_unique<tetgenio>();
       tetgenbehavior tb;
       if (refine) {
-        parse(tb, ("rYzQq" + num(p.radius_edge) + "/" + num(p.min_dihedral) +
-                   (p.max_volume > 0 ? "a" + num(p.max_volume) : std::string()))
+        parse(tb, ("rYzQq" + format_number(p.radius_edge) + "/" + format_number(p.min_dihedral) +
+                   (p.max_volume > 0 ? "a" + format_number(p.max_volume) : std::string()))
                       .c_str());
         tb.optlevel = 0;
       } else {
@@ -747,7 +741,7 @@ ConformResult conforming_tets(const Mesh& boundary, const std::vector<std::array
     res.interior_exuded += cand.size() - next.size();
     if (p.progress)
       info("conform: " + std::to_string(cand.size() - next.size()) +
-           " interior points of tetrahedra outside [" + num(p.exude_below) + ", " + num(p.exude_above) +
+           " interior points of tetrahedra outside [" + format_number(p.exude_below) + ", " + format_number(p.exude_above) +
            "] degrees removed; meshing again");
     cand.swap(next);
   }
@@ -759,7 +753,7 @@ ConformResult conforming_tets(const Mesh& boundary, const std::vector<std::array
     res.steps.push_back(again);
     if (p.progress)
       info("conform: keeping step \"" + res.steps[best_step].name + "\" (" + std::to_string(best_bad) +
-           " tetrahedra outside [" + num(p.exude_below) + ", " + num(p.exude_above) + "] degrees)");
+           " tetrahedra outside [" + format_number(p.exude_below) + ", " + format_number(p.exude_above) + "] degrees)");
   }
   const ConformStep& kept_step = res.steps[best_step];
   res.kept_step = kept_step.name;
@@ -792,9 +786,9 @@ ConformResult conforming_tets(const Mesh& boundary, const std::vector<std::array
     if (p.progress) {
       const TetStats& o = st.quality.overall;
       info("conform smooth: " + std::to_string(sr.moves) + " moves in " + std::to_string(sr.sweeps) +
-           " sweeps, dihedral " + num(o.dihedral_min) + ".." + num(o.dihedral_max) + " deg, " +
-           num(100 * st.share_25_140) + "% in [25, 140], radius ratio mean " + num(o.rr_mean) + ", " +
-           num(st.seconds) + " s");
+           " sweeps, dihedral " + format_number(o.dihedral_min) + ".." + format_number(o.dihedral_max) + " deg, " +
+           format_number(100 * st.share_25_140) + "% in [25, 140], radius ratio mean " + format_number(o.rr_mean) + ", " +
+           format_number(st.seconds) + " s");
     }
     res.steps.push_back(st);
   }

@@ -123,19 +123,9 @@ TetSmoothResult odt_smooth(LabelledTets& t, std::size_t first_free, const TetSmo
   // open a large one past its bound (nor the other way).
   constexpr double kRatioFloor = 0.25;
   const double low = std::max(p.perturb_below, 1.0), high = std::max(180 - p.perturb_above, 1.0);
-  auto margin = [&](std::size_t i, const Vec3& x) {
-    double m = 1e300;
-    for (std::size_t s = start[i - first_free]; s < start[i - first_free + 1]; ++s) {
-      const auto& c = t.tets[ring[s]];
-      Vec3 q[4];
-      for (int k = 0; k < 4; ++k) q[k] = std::size_t(c[std::size_t(k)]) == i ? x : X[std::size_t(c[std::size_t(k)])];
-      if (!(volume6(q[0], q[1], q[2], q[3]) > 0)) return -1.0;
-      const std::array<double, 6> d = tet_dihedrals(q[0], q[1], q[2], q[3]);
-      const auto [lo, hi] = std::minmax_element(d.begin(), d.end());
-      m = std::min(m, std::min(*lo / low, (180 - *hi) / high));
-    }
-    return m;
-  };
+  // The margin of the worst tetrahedron is that of the ring's extreme angles
+  // (both terms are monotone in them); -1 when a tetrahedron is not positive.
+  auto margin = [&](const Worst& w) { return w.rr < 0 ? -1.0 : std::min(w.dmin / low, (180 - w.dmax) / high); };
   std::vector<Vec3> dirs;
   for (int a = 0; a < 3; ++a)
     for (double sgn : {-1.0, 1.0}) {
@@ -162,16 +152,18 @@ TetSmoothResult odt_smooth(LabelledTets& t, std::size_t first_free, const TetSmo
     for (std::size_t s = start[i - first_free]; s < start[i - first_free + 1]; ++s)
       for (int v : t.tets[ring[s]])
         if (std::size_t(v) != i) shortest = std::min(shortest, norm(X[std::size_t(v)] - X[i]));
-    double step = 0.2 * shortest, best = margin(i, X[i]);
+    const Worst w0 = worst(i, X[i]);
+    double step = 0.2 * shortest, best = margin(w0);
     // The radius ratio around the vertex may not fall below min(its old worst, kRatioFloor).
-    const double rr_floor = std::min(worst(i, X[i]).rr, kRatioFloor);
+    const double rr_floor = std::min(w0.rr, kRatioFloor);
     bool improved = false;
     for (int it = 0; it < 40 && step > 1e-3 * shortest; ++it) {
       bool found = false;
       for (const Vec3& e : dirs) {
         const Vec3 x = X[i] + e * step;
-        const double m = margin(i, x);
-        if (m > best && worst(i, x).rr >= rr_floor) {
+        const Worst w = worst(i, x);
+        const double m = margin(w);
+        if (m > best && w.rr >= rr_floor) {
           best = m;
           X[i] = x;
           found = improved = true;
