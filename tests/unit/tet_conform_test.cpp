@@ -364,6 +364,8 @@ TEST(TetConform, InteriorPointsOfSliversAreRemovedAndMeshedAgain) {
 
 #include "pm/mesh/tet_smooth.h"
 
+#include <tbb/global_control.h>
+
 namespace pm {
 namespace {
 
@@ -420,6 +422,32 @@ TEST(TetSmooth, OdtRaisesMeanQualityKeepsWorstBoundaryAndVolume) {
   TetSmoothParams bad;
   bad.sweeps = 0;
   EXPECT_THROW(odt_smooth(t, 0, bad), UsageError);
+}
+
+TEST(TetSmooth, SameMeshForAnyThreadCount) {
+  // The colours move one after the other, each in parallel: 1 and 4
+  // threads give the same vertices, bit for bit.
+  const Mesh s = icosphere(3, 1.0);
+  std::vector<Vec3> inner = bcc_ball(1, 0.12, 0.07);
+  ConformParams p = quiet();
+  p.exude_rounds = 0;
+  p.smooth_sweeps = 0;
+  const ConformResult r = conforming_tets(s, pairs(s.faces.size(), 0, 1), inner, ball_label, 0, p);
+  LabelledTets one = r.mesh, four = r.mesh;
+  TetSmoothResult a, b;
+  {
+    tbb::global_control c(tbb::global_control::max_allowed_parallelism, 1);
+    a = odt_smooth(one, s.vertices.size());
+  }
+  {
+    tbb::global_control c(tbb::global_control::max_allowed_parallelism, 4);
+    b = odt_smooth(four, s.vertices.size());
+  }
+  ASSERT_GT(a.moves, 1000u);
+  EXPECT_EQ(a.moves, b.moves);
+  EXPECT_EQ(a.perturbed, b.perturbed);
+  EXPECT_EQ(one.vertices, four.vertices);
+  EXPECT_NE(one.vertices, r.mesh.vertices);
 }
 
 }  // namespace

@@ -2,7 +2,10 @@
 // ratios with closed forms, and the mesh checks on a cube cut into 6 tetrahedra.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+
+#include <tbb/global_control.h>
 
 #include "pm/base/error.h"
 #include "pm/io/medit.h"
@@ -156,6 +159,94 @@ TEST(TetQuality, MeditRoundTrip) {
   EXPECT_EQ(r.materials, t.materials);
   EXPECT_EQ(r.triangles.size(), 12u);
   EXPECT_NEAR(tet_quality(r).overall.volume, 1.0, 1e-12);
+}
+
+// n^3 Kuhn cubes (6 n^3 tetrahedra) with the inner vertices jittered (the
+// box stays the box, unless box_too), materials by the cube's parity; no
+// triangles.
+LabelledTets jittered_grid(int n, double jitter, bool box_too = false) {
+  LabelledTets t;
+  std::uint64_t state = 11;
+  auto u = [&] {
+    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+    return double(state >> 11) / double(1ULL << 53) - 0.5;
+  };
+  auto id = [&](int i, int j, int k) { return (k * (n + 1) + j) * (n + 1) + i; };
+  for (int k = 0; k <= n; ++k)
+    for (int j = 0; j <= n; ++j)
+      for (int i = 0; i <= n; ++i) {
+        const bool inner = i > 0 && j > 0 && k > 0 && i < n && j < n && k < n;
+        const double s = inner || box_too ? jitter : 0.0;
+        t.vertices.push_back(Vec3(i + s * u(), j + s * u(), k + s * u()));
+      }
+  const LabelledTets cube = kuhn_cube();
+  for (int k = 0; k < n; ++k)
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i)
+        for (const auto& c : cube.tets) {
+          std::array<int, 4> q;
+          for (int v = 0; v < 4; ++v) q[std::size_t(v)] = id(i + (c[std::size_t(v)] & 1), j + ((c[std::size_t(v)] >> 1) & 1), k + (c[std::size_t(v)] >> 2));
+          t.tets.push_back(q);
+          t.materials.push_back(1 + (i + j + k) % 2);
+        }
+  return t;
+}
+
+TEST(TetQuality, RangeAndBinsFromCosinesEqualTheSixAngles) {
+  // tet_quality bins angles by their normal cosines and takes two arc
+  // cosines per tetrahedron: the same numbers as the six angles give (every
+  // vertex jittered, so that no angle sits on a bin's edge, 60° or 90°).
+  const LabelledTets t = jittered_grid(8, 0.9, true);
+  TetStats ref;
+  for (const auto& c : t.tets) {
+    const Vec3 &a = t.vertices[std::size_t(c[0])], &b = t.vertices[std::size_t(c[1])],
+               &d = t.vertices[std::size_t(c[2])], &e = t.vertices[std::size_t(c[3])];
+    const std::array<double, 6> six = tet_dihedrals(a, b, d, e);
+    const auto [lo, hi] = std::minmax_element(six.begin(), six.end());
+    const DihedralRange r = tet_dihedral_range(a, b, d, e);
+    ASSERT_EQ(r.min, *lo);
+    ASSERT_EQ(r.max, *hi);
+    ref.dihedral_min = std::min(ref.dihedral_min, *lo);
+    ref.dihedral_max = std::max(ref.dihedral_max, *hi);
+    for (double x : six) ++ref.dihedral_hist[std::size_t(std::clamp(int(x / 10), 0, 17))];
+    ref.under_10 += *lo < 10;
+    ref.within_25_140 += *lo >= 25 && *hi <= 140;
+  }
+  const TetQuality q = tet_quality(t);
+  EXPECT_EQ(q.overall.dihedral_min, ref.dihedral_min);
+  EXPECT_EQ(q.overall.dihedral_max, ref.dihedral_max);
+  EXPECT_EQ(q.overall.dihedral_hist, ref.dihedral_hist);
+  EXPECT_EQ(q.overall.under_10, ref.under_10);
+  EXPECT_EQ(q.overall.within_25_140, ref.within_25_140);
+  EXPECT_GT(ref.under_10, 0u);  // the jitter makes slivers: the counts are tested
+  EXPECT_LT(ref.within_25_140, t.tets.size());
+}
+
+TEST(TetQuality, SameNumbersForAnyThreadCount) {
+  // 48k tetrahedra: several blocks of the parallel reduction.
+  const LabelledTets t = jittered_grid(20, 0.2);
+  TetQuality one, four;
+  {
+    tbb::global_control c(tbb::global_control::max_allowed_parallelism, 1);
+    one = tet_quality(t);
+  }
+  {
+    tbb::global_control c(tbb::global_control::max_allowed_parallelism, 4);
+    four = tet_quality(t);
+  }
+  EXPECT_EQ(one.overall.rr_mean, four.overall.rr_mean);  // bit for bit
+  EXPECT_EQ(one.overall.volume, four.overall.volume);
+  EXPECT_EQ(one.materials.at(2).rr_mean, four.materials.at(2).rr_mean);
+  EXPECT_EQ(one.overall.rr_hist, four.overall.rr_hist);
+  EXPECT_EQ(one.overall.tets, 48000u);
+  EXPECT_EQ(one.overall.non_positive, 0u);
+  EXPECT_NEAR(one.overall.volume, 8000.0, 1e-9);  // the box
+  // The closed grid: every boundary face once, a manifold, no overfull faces;
+  // the parity materials make every inner cube face an interface.
+  EXPECT_EQ(one.boundary_faces, 6u * 2 * 20 * 20);
+  EXPECT_EQ(one.boundary_nonmanifold_edges, 0u);
+  EXPECT_EQ(one.overfull_faces, 0u);
+  EXPECT_EQ(one.interface_faces, 3u * 2 * 19 * 20 * 20);
 }
 
 }  // namespace

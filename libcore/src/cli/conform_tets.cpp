@@ -69,12 +69,13 @@ void add_conform_options(CLI::App& app, ConformRun& r) {
   app.add_flag("--optimise,!--no-optimise", r.params.optimise,
                "With --conform: sliver removal (TetGen's flips and interior-vertex smoothing; default on)");
   app.add_option("--exude-rounds", r.params.exude_rounds,
-                 "With --conform: times the interior points of tetrahedra still outside [12, 160] degrees are "
-                 "removed and the volume meshed again (the best meshing is kept); 0 = never")
+                 "With --conform: when tetrahedra outside [12, 160] degrees survive the smoothing, the interior "
+                 "points of those TetGen left outside are removed and the volume meshed again, at most this many "
+                 "times (the best meshing is kept); 0 = never")
       ->capture_default_str()
       ->check(CLI::Range(0, 5));
   app.add_option("--smooth", r.params.smooth_sweeps,
-                 "With --conform: sweeps of ODT smoothing of the interior vertices at the end (moves that keep "
+                 "With --conform: sweeps of ODT smoothing of the interior vertices after each meshing (moves that keep "
                  "every tetrahedron positive and do not lower the worst radius ratio around the vertex); 0 = none")
       ->capture_default_str()
       ->check(CLI::Range(0, 50));

@@ -7,6 +7,10 @@
 #include <sstream>
 #include <unordered_map>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+#include <tbb/parallel_sort.h>
+
 #include "pm/base/error.h"
 
 namespace pm {
@@ -18,32 +22,9 @@ double signed_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d)
   return dot(b - a, cross(c - a, d - a)) / 6.0;
 }
 
-std::uint64_t face_key(int a, int b, int c) {
-  int v[3] = {a, b, c};
-  std::sort(v, v + 3);
-  return (std::uint64_t(v[0]) << 42) ^ (std::uint64_t(v[1]) << 21) ^ std::uint64_t(v[2]);
-}
 std::uint64_t edge_key(int a, int b) {
   if (a > b) std::swap(a, b);
   return (std::uint64_t(a) << 32) | std::uint64_t(std::uint32_t(b));
-}
-
-void add(TetStats& s, const std::array<double, 6>& dih, double rr, double vol) {
-  ++s.tets;
-  s.volume += std::fabs(vol);
-  double lo = 180;
-  for (double a : dih) {
-    lo = std::min(lo, a);
-    s.dihedral_min = std::min(s.dihedral_min, a);
-    s.dihedral_max = std::max(s.dihedral_max, a);
-    ++s.dihedral_hist[std::size_t(std::clamp(int(a / 10), 0, 17))];
-  }
-  if (lo < 10) ++s.under_10;
-  if (lo >= 25 && *std::max_element(dih.begin(), dih.end()) <= 140) ++s.within_25_140;
-  if (!(vol > 0)) ++s.non_positive;
-  s.rr_min = std::min(s.rr_min, rr);
-  s.rr_mean += rr;  // divided at the end
-  ++s.rr_hist[std::size_t(std::clamp(int(rr * 10), 0, 9))];
 }
 
 Json stats_json(const TetStats& s) {
@@ -65,7 +46,11 @@ Json stats_json(const TetStats& s) {
 
 }  // namespace
 
-std::array<double, 6> tet_dihedrals(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+namespace {
+
+// Cosines of the outward normals of the two faces at each edge (ab, ac, ad,
+// bc, bd, cd); the dihedral angle is 180° − acos(cosine).
+std::array<double, 6> normal_cosines(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
   const Vec3 p[4] = {a, b, c, d};
   // Outward normals of the faces opposite each corner (sign-independent:
   // each normal points away from its opposite corner).
@@ -80,14 +65,89 @@ std::array<double, 6> tet_dihedrals(const Vec3& a, const Vec3& b, const Vec3& c,
     n[k] = l > 0 ? m / l : Vec3{};
   }
   // The dihedral angle at edge (i, j) lies between the faces opposite the
-  // other two corners k, l: π − angle(n_k, n_l).
-  static const int kEdges[6][4] = {{0, 1, 2, 3}, {0, 2, 1, 3}, {0, 3, 1, 2}, {1, 2, 0, 3}, {1, 3, 0, 2}, {2, 3, 0, 1}};
-  std::array<double, 6> out{};
-  for (int e = 0; e < 6; ++e) {
-    const double cs = std::clamp(dot(n[kEdges[e][2]], n[kEdges[e][3]]), -1.0, 1.0);
-    out[std::size_t(e)] = 180.0 - std::acos(cs) * kRadToDeg;
+  // other two corners k, l.
+  static const int kOther[6][2] = {{2, 3}, {1, 3}, {1, 2}, {0, 3}, {0, 2}, {0, 1}};
+  std::array<double, 6> cs{};
+  for (int e = 0; e < 6; ++e) cs[std::size_t(e)] = std::clamp(dot(n[kOther[e][0]], n[kOther[e][1]]), -1.0, 1.0);
+  return cs;
+}
+
+double angle_of(double cosine) { return 180.0 - std::acos(cosine) * kRadToDeg; }
+
+// cos(180° − 10° k), k = 1..17: a dihedral angle is in bin k or above
+// exactly when its normal cosine is at least kBin[k - 1].
+struct Thresholds {
+  std::array<double, 17> bin{};
+  double at10, at25, at140;
+  Thresholds() {
+    for (int k = 1; k <= 17; ++k) bin[std::size_t(k - 1)] = std::cos((180.0 - 10.0 * k) / kRadToDeg);
+    at10 = std::cos(170.0 / kRadToDeg);
+    at25 = std::cos(155.0 / kRadToDeg);
+    at140 = std::cos(40.0 / kRadToDeg);
   }
+};
+const Thresholds& thresholds() {
+  static const Thresholds t;
+  return t;
+}
+
+void add_tet(TetStats& s, const std::array<double, 6>& cs, double rr, double vol) {
+  const Thresholds& th = thresholds();
+  ++s.tets;
+  s.volume += std::fabs(vol);
+  const auto [lo, hi] = std::minmax_element(cs.begin(), cs.end());
+  s.dihedral_min = std::min(s.dihedral_min, angle_of(*lo));
+  s.dihedral_max = std::max(s.dihedral_max, angle_of(*hi));
+  for (double c : cs)
+    ++s.dihedral_hist[std::size_t(std::upper_bound(th.bin.begin(), th.bin.end(), c) - th.bin.begin())];
+  if (*lo < th.at10) ++s.under_10;
+  if (*lo >= th.at25 && *hi <= th.at140) ++s.within_25_140;
+  if (!(vol > 0)) ++s.non_positive;
+  s.rr_min = std::min(s.rr_min, rr);
+  s.rr_mean += rr;  // divided at the end
+  ++s.rr_hist[std::size_t(std::clamp(int(rr * 10), 0, 9))];
+}
+
+void merge(TetStats& s, const TetStats& o) {
+  s.tets += o.tets;
+  s.volume += o.volume;
+  s.dihedral_min = std::min(s.dihedral_min, o.dihedral_min);
+  s.dihedral_max = std::max(s.dihedral_max, o.dihedral_max);
+  s.rr_min = std::min(s.rr_min, o.rr_min);
+  s.rr_mean += o.rr_mean;
+  s.under_10 += o.under_10;
+  s.within_25_140 += o.within_25_140;
+  s.non_positive += o.non_positive;
+  for (std::size_t i = 0; i < s.dihedral_hist.size(); ++i) s.dihedral_hist[i] += o.dihedral_hist[i];
+  for (std::size_t i = 0; i < s.rr_hist.size(); ++i) s.rr_hist[i] += o.rr_hist[i];
+}
+
+struct Partial {
+  TetStats overall;
+  std::map<int, TetStats> materials;
+};
+
+// One face of one tetrahedron: its sorted corners and where it came from.
+struct FaceRec {
+  std::uint64_t lo;  // corners 0 and 1 of the sorted triple
+  std::uint32_t hi;  // corner 2
+  std::uint32_t tet_face;  // 4 tet + local face
+  bool operator<(const FaceRec& o) const { return lo != o.lo ? lo < o.lo : hi < o.hi; }
+  bool same(const FaceRec& o) const { return lo == o.lo && hi == o.hi; }
+};
+
+}  // namespace
+
+std::array<double, 6> tet_dihedrals(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+  std::array<double, 6> out = normal_cosines(a, b, c, d);
+  for (double& x : out) x = angle_of(x);
   return out;
+}
+
+DihedralRange tet_dihedral_range(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+  const std::array<double, 6> cs = normal_cosines(a, b, c, d);
+  const auto [lo, hi] = std::minmax_element(cs.begin(), cs.end());
+  return {angle_of(*lo), angle_of(*hi)};
 }
 
 double tet_radius_ratio(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
@@ -105,59 +165,83 @@ TetQuality tet_quality(const LabelledTets& t) {
   t.validate("tet_quality");
   TetQuality q;
   q.vertices = t.vertices.size();
-  struct FaceUse {
-    int count = 0;
-    int m0 = 0, m1 = 0;
-    std::array<int, 3> v{};
-  };
-  std::unordered_map<std::uint64_t, FaceUse> faces;
-  faces.reserve(t.tets.size() * 3);
+  const std::size_t nt = t.tets.size();
   static const int kFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
-  for (std::size_t i = 0; i < t.tets.size(); ++i) {
-    const auto& c = t.tets[i];
-    const Vec3 &a = t.vertices[std::size_t(c[0])], &b = t.vertices[std::size_t(c[1])],
-               &cc = t.vertices[std::size_t(c[2])], &d = t.vertices[std::size_t(c[3])];
-    const auto dih = tet_dihedrals(a, b, cc, d);
-    const double rr = tet_radius_ratio(a, b, cc, d), vol = signed_volume(a, b, cc, d);
-    add(q.overall, dih, rr, vol);
-    add(q.materials[t.materials[i]], dih, rr, vol);
-    for (const auto& f : kFace) {
-      FaceUse& u = faces[face_key(c[std::size_t(f[0])], c[std::size_t(f[1])], c[std::size_t(f[2])])];
-      (u.count == 0 ? u.m0 : u.m1) = t.materials[i];
-      if (u.count == 0) u.v = {c[std::size_t(f[0])], c[std::size_t(f[1])], c[std::size_t(f[2])]};
-      ++u.count;
-    }
-  }
+  // Per-tetrahedron numbers in fixed blocks joined in a fixed order: the
+  // floating-point sums do not depend on the thread count.
+  std::vector<FaceRec> faces(4 * nt);
+  const Partial all = tbb::parallel_deterministic_reduce(
+      tbb::blocked_range<std::size_t>(0, nt, 8192), Partial{},
+      [&](const tbb::blocked_range<std::size_t>& r, Partial acc) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+          const auto& c = t.tets[i];
+          const Vec3 &a = t.vertices[std::size_t(c[0])], &b = t.vertices[std::size_t(c[1])],
+                     &cc = t.vertices[std::size_t(c[2])], &d = t.vertices[std::size_t(c[3])];
+          const std::array<double, 6> cs = normal_cosines(a, b, cc, d);
+          const double rr = tet_radius_ratio(a, b, cc, d), vol = signed_volume(a, b, cc, d);
+          add_tet(acc.overall, cs, rr, vol);
+          add_tet(acc.materials[t.materials[i]], cs, rr, vol);
+          for (int f = 0; f < 4; ++f) {
+            std::uint32_t v[3] = {std::uint32_t(c[std::size_t(kFace[f][0])]), std::uint32_t(c[std::size_t(kFace[f][1])]),
+                                  std::uint32_t(c[std::size_t(kFace[f][2])])};
+            std::sort(v, v + 3);
+            faces[4 * i + std::size_t(f)] = {(std::uint64_t(v[0]) << 32) | v[1], v[2], std::uint32_t(4 * i + std::size_t(f))};
+          }
+        }
+        return acc;
+      },
+      [](Partial x, const Partial& y) {
+        merge(x.overall, y.overall);
+        for (const auto& [m, s] : y.materials) merge(x.materials[m], s);
+        return x;
+      });
+  q.overall = all.overall;
+  q.materials = all.materials;
   auto finish = [](TetStats& s) { s.rr_mean = s.tets ? s.rr_mean / double(s.tets) : 0.0; };
   finish(q.overall);
   for (auto& [m, s] : q.materials) finish(s);
+
+  // Faces shared by two tetrahedra are neighbours once sorted; the counts
+  // below do not depend on the order among equal faces.
+  tbb::parallel_sort(faces.begin(), faces.end());
   std::unordered_map<std::uint64_t, int> boundary_edges;
-  std::unordered_map<std::uint64_t, char> listed_faces;  // boundary and interface faces
-  for (const auto& [key, u] : faces) {
-    if (u.count >= 3) {
+  std::vector<FaceRec> listed;  // boundary and interface faces, sorted
+  for (std::size_t i = 0; i < faces.size();) {
+    std::size_t j = i + 1;
+    while (j < faces.size() && faces[j].same(faces[i])) ++j;
+    const std::size_t count = j - i;
+    if (count >= 3) {
       ++q.overfull_faces;
-    } else if (u.count == 1) {
+    } else if (count == 1) {
       ++q.boundary_faces;
-      listed_faces[key] = 0;
-      for (int e = 0; e < 3; ++e) ++boundary_edges[edge_key(u.v[std::size_t(e)], u.v[std::size_t((e + 1) % 3)])];
-    } else if (u.m0 != u.m1) {
+      listed.push_back(faces[i]);
+      const auto& c = t.tets[faces[i].tet_face / 4];
+      const int* f = kFace[faces[i].tet_face % 4];
+      for (int e = 0; e < 3; ++e)
+        ++boundary_edges[edge_key(c[std::size_t(f[e])], c[std::size_t(f[(e + 1) % 3])])];
+    } else if (t.materials[faces[i].tet_face / 4] != t.materials[faces[i + 1].tet_face / 4]) {
       ++q.interface_faces;
-      listed_faces[key] = 0;
+      listed.push_back(faces[i]);
     }
+    i = j;
   }
   for (const auto& [e, n] : boundary_edges)
     if (n != 2) ++q.boundary_nonmanifold_edges;
   if (!t.triangles.empty()) {
     q.has_triangles = true;
+    std::vector<char> seen(listed.size(), 0);
     for (const auto& f : t.triangles) {
-      auto it = listed_faces.find(face_key(f[0], f[1], f[2]));
-      if (it == listed_faces.end())
+      std::uint32_t v[3] = {std::uint32_t(f[0]), std::uint32_t(f[1]), std::uint32_t(f[2])};
+      std::sort(v, v + 3);
+      const FaceRec key{(std::uint64_t(v[0]) << 32) | v[1], v[2], 0};
+      const auto it = std::lower_bound(listed.begin(), listed.end(), key);
+      if (it == listed.end() || !it->same(key))
         ++q.triangles_extra;
       else
-        it->second = 1;
+        seen[std::size_t(it - listed.begin())] = 1;
     }
-    for (const auto& [k, seen] : listed_faces)
-      if (!seen) ++q.triangles_missing;
+    for (char s : seen)
+      if (!s) ++q.triangles_missing;
   }
   return q;
 }

@@ -5,7 +5,11 @@
 #include <cmath>
 #include <vector>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
 #include "pm/base/error.h"
+#include "pm/base/log.h"
 #include "pm/mesh/tet_quality.h"
 
 namespace pm {
@@ -60,10 +64,9 @@ TetSmoothResult odt_smooth(LabelledTets& t, std::size_t first_free, const TetSmo
         return w;
       }
       w.rr = std::min(w.rr, tet_radius_ratio(q[0], q[1], q[2], q[3]));
-      const std::array<double, 6> d = tet_dihedrals(q[0], q[1], q[2], q[3]);
-      const auto [lo, hi] = std::minmax_element(d.begin(), d.end());
-      w.dmin = std::min(w.dmin, *lo);
-      w.dmax = std::max(w.dmax, *hi);
+      const DihedralRange d = tet_dihedral_range(q[0], q[1], q[2], q[3]);
+      w.dmin = std::min(w.dmin, d.min);
+      w.dmax = std::max(w.dmax, d.max);
     }
     return w;
   };
@@ -75,45 +78,91 @@ TetSmoothResult odt_smooth(LabelledTets& t, std::size_t first_free, const TetSmo
     return now.rr >= old.rr && now.dmin >= std::min(old.dmin, kLow) && now.dmax <= std::max(old.dmax, kHigh);
   };
   const std::size_t nfree = nv - first_free;
+  // Colour the free vertices so that no two of a colour share a tetrahedron
+  // (greedy, in vertex order): the vertices of one colour move independently
+  // of each other, in parallel, with the same result for any thread count.
+  std::vector<int> colour(nfree, -1);
+  int colours = 0;
+  {
+    std::vector<std::size_t> taken;  // colour -> the vertex that last saw it taken
+    for (std::size_t i = first_free; i < nv; ++i) {
+      for (std::size_t s = start[i - first_free]; s < start[i - first_free + 1]; ++s)
+        for (int v : t.tets[ring[s]]) {
+          if (std::size_t(v) < first_free || std::size_t(v) == i) continue;
+          const int c = colour[std::size_t(v) - first_free];
+          if (c >= 0) taken[std::size_t(c)] = i;
+        }
+      int c = 0;
+      while (c < colours && taken[std::size_t(c)] == i) ++c;
+      if (c == colours) {
+        ++colours;
+        taken.push_back(nv);
+      }
+      colour[i - first_free] = c;
+    }
+  }
+  std::vector<std::size_t> by_colour_start(std::size_t(colours) + 1, 0), by_colour(nfree);
+  for (int c : colour) ++by_colour_start[std::size_t(c) + 1];
+  for (std::size_t c = 1; c < by_colour_start.size(); ++c) by_colour_start[c] += by_colour_start[c - 1];
+  {
+    std::vector<std::size_t> fill_c(by_colour_start.begin(), by_colour_start.end() - 1);
+    for (std::size_t i = 0; i < nfree; ++i) by_colour[fill_c[std::size_t(colour[i])]++] = first_free + i;
+  }
+  // One vertex's ODT move: 1 moved, 0 rejected, -1 nothing to do.
+  auto move = [&](std::size_t i) -> int {
+    if (start[i - first_free] == start[i - first_free + 1]) return -1;  // in no tetrahedron
+    double vol = 0;
+    Vec3 acc(0, 0, 0);
+    for (std::size_t s = start[i - first_free]; s < start[i - first_free + 1]; ++s) {
+      const auto& c = t.tets[ring[s]];
+      const Vec3 &a = X[std::size_t(c[0])], &b = X[std::size_t(c[1])], &cc = X[std::size_t(c[2])],
+                 &d = X[std::size_t(c[3])];
+      const double det = volume6(a, b, cc, d);
+      if (!(det > 0)) continue;
+      acc += circumcentre(a, b, cc, d, det) * det;
+      vol += det;
+    }
+    if (!(vol > 0)) return -1;
+    const Vec3 target = acc / vol, old = X[i];
+    const Worst w0 = worst(i, old);
+    for (double step : {1.0, 0.5}) {
+      const Vec3 x = old + (target - old) * step;
+      if (!is_finite(x)) continue;
+      if (acceptable(worst(i, x), w0)) {
+        X[i] = x;
+        return 1;
+      }
+    }
+    return 0;
+  };
+  Stopwatch odt_clock;
   for (int sweep = 0; sweep < p.sweeps; ++sweep) {
     std::size_t moved = 0;
-    for (std::size_t i = first_free; i < nv; ++i) {
-      if (start[i - first_free] == start[i - first_free + 1]) continue;  // in no tetrahedron
-      double vol = 0;
-      Vec3 acc(0, 0, 0);
-      for (std::size_t s = start[i - first_free]; s < start[i - first_free + 1]; ++s) {
-        const auto& c = t.tets[ring[s]];
-        const Vec3 &a = X[std::size_t(c[0])], &b = X[std::size_t(c[1])], &cc = X[std::size_t(c[2])],
-                   &d = X[std::size_t(c[3])];
-        const double det = volume6(a, b, cc, d);
-        if (!(det > 0)) continue;
-        acc += circumcentre(a, b, cc, d, det) * det;
-        vol += det;
-      }
-      if (!(vol > 0)) continue;
-      const Vec3 target = acc / vol, old = X[i];
-      const Worst w0 = worst(i, old);
-      bool done = false;
-      for (double step : {1.0, 0.5}) {
-        const Vec3 x = old + (target - old) * step;
-        if (!is_finite(x)) continue;
-        if (acceptable(worst(i, x), w0)) {
-          X[i] = x;
-          done = true;
-          break;
-        }
-      }
-      if (done) {
-        ++moved;
-        ++r.moves;
-      } else {
-        ++r.rejected;
-      }
+    for (int c = 0; c < colours; ++c) {
+      const std::size_t b0 = by_colour_start[std::size_t(c)], b1 = by_colour_start[std::size_t(c) + 1];
+      const auto counts = tbb::parallel_reduce(
+          tbb::blocked_range<std::size_t>(b0, b1, 256), std::array<std::size_t, 2>{0, 0},
+          [&](const tbb::blocked_range<std::size_t>& rg, std::array<std::size_t, 2> n) {
+            for (std::size_t k = rg.begin(); k != rg.end(); ++k) {
+              const int m = move(by_colour[k]);
+              if (m == 1) ++n[0];
+              if (m == 0) ++n[1];
+            }
+            return n;
+          },
+          [](std::array<std::size_t, 2> x, const std::array<std::size_t, 2>& y) {
+            return std::array<std::size_t, 2>{x[0] + y[0], x[1] + y[1]};
+          });
+      moved += counts[0];
+      r.moves += counts[0];
+      r.rejected += counts[1];
     }
     ++r.sweeps;
     if (double(moved) < p.stop_fraction * double(nfree)) break;
   }
+  r.odt_seconds = odt_clock.seconds();
   if (p.perturb_below <= 0 && p.perturb_above >= 180) return r;
+  Stopwatch perturb_clock;
   // Sliver perturbation: each free vertex of a tetrahedron outside
   // [perturb_below, perturb_above] climbs to raise the worst angle margin
   // min(smallest dihedral / below, (180° - largest) / (180° - above)) among
@@ -138,15 +187,15 @@ TetSmoothResult odt_smooth(LabelledTets& t, std::size_t first_free, const TetSmo
       for (double z : {-1.0, 1.0}) dirs.push_back(Vec3(x, y, z) / std::sqrt(3.0));
   std::vector<std::size_t> todo;
   for (const auto& c : t.tets) {
-    const std::array<double, 6> d = tet_dihedrals(X[std::size_t(c[0])], X[std::size_t(c[1])], X[std::size_t(c[2])],
-                                                  X[std::size_t(c[3])]);
-    const auto [lo, hi] = std::minmax_element(d.begin(), d.end());
-    if (*lo >= p.perturb_below && *hi <= p.perturb_above) continue;
+    const DihedralRange d =
+        tet_dihedral_range(X[std::size_t(c[0])], X[std::size_t(c[1])], X[std::size_t(c[2])], X[std::size_t(c[3])]);
+    if (d.min >= p.perturb_below && d.max <= p.perturb_above) continue;
     for (int v : c)
       if (std::size_t(v) >= first_free) todo.push_back(std::size_t(v));
   }
   std::sort(todo.begin(), todo.end());
   todo.erase(std::unique(todo.begin(), todo.end()), todo.end());
+  r.perturb_candidates = todo.size();
   for (std::size_t i : todo) {
     double shortest = 1e300;
     for (std::size_t s = start[i - first_free]; s < start[i - first_free + 1]; ++s)
@@ -173,6 +222,7 @@ TetSmoothResult odt_smooth(LabelledTets& t, std::size_t first_free, const TetSmo
     }
     r.perturbed += improved;
   }
+  r.perturb_seconds = perturb_clock.seconds();
   return r;
 }
 

@@ -52,6 +52,17 @@ struct TetQuality {
 std::array<double, 6> tet_dihedrals(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);
 double tet_radius_ratio(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);
 
+/// The smallest and largest of the six dihedral angles (degrees), as
+/// tet_dihedrals would give them, with two arc cosines instead of six: the
+/// angle grows with the cosine of the two faces' outward normals.
+struct DihedralRange {
+  double min = 0, max = 0;
+};
+DihedralRange tet_dihedral_range(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);
+
+/// Quality of every tetrahedron and the face checks; parallel over the
+/// tetrahedra (TBB), with the same numbers, bit for bit, for any thread count.
+
 TetQuality tet_quality(const LabelledTets& t);
 Json to_json(const TetQuality& q);
 /// A short table for stderr.

@@ -34,11 +34,15 @@ struct TetSmoothResult {
   std::size_t moves = 0;        ///< accepted moves (full or half), all sweeps
   std::size_t rejected = 0;     ///< vertices left in place in a sweep because no move was acceptable
   std::size_t perturbed = 0;    ///< vertices the sliver perturbation moved
+  std::size_t perturb_candidates = 0;  ///< free vertices of tetrahedra outside the perturbation band
+  double odt_seconds = 0, perturb_seconds = 0;  ///< wall time of the two phases
 };
 
 /// Smooth the vertices with index >= first_free (the others, e.g. boundary
-/// and interface vertices, never move). Deterministic (sequential, vertex
-/// order). \throw UsageError for sweeps < 1 or first_free beyond the vertices.
+/// and interface vertices, never move). Deterministic for any thread count:
+/// the free vertices are coloured so that no two of a colour share a
+/// tetrahedron, and each colour moves in parallel, colour after colour.
+/// \throw UsageError for sweeps < 1 or first_free beyond the vertices.
 TetSmoothResult odt_smooth(LabelledTets& t, std::size_t first_free, const TetSmoothParams& p = {});
 
 }  // namespace pm
