@@ -31,6 +31,14 @@ DATASETS = [
     ("ct-bone", "surface", "vtk-headsq/derived/headsq_quarter.nrrd", {"ISO": "1150", "TIGHTEN": "1",
                                                                      "MIN_COMPONENT": "20"},
      "VTK headsq CT bone at 1150 (quarter resolution), thresholded, cleaned and tightened"),
+    ("colin27", "surface", "mricron-ch2bet/ch2bet.nii.gz", {"ISO": "25", "TIGHTEN": "1", "MIN_COMPONENT": "1000"},
+     "Colin27 brain-extracted T1 MRI (ch2bet), 181x217x181, 1 mm, isovalue 25, cleaned and tightened"),
+    ("bunny", "surface", "sdf:0.006:cgal-meshes/bunny00.off", {"ISO": "0"},
+     "signed distance of the bunny, voxel 0.006 (band 8 voxels)"),
+    ("knot", "surface", "sdf:0.006:cgal-meshes/knot1.off", {"ISO": "0"},
+     "signed distance of knot1, voxel 0.006 (band 8 voxels)"),
+    ("armadillo", "surface", "sdf:0.8:cgal-meshes/armadillo.off", {"ISO": "0"},
+     "signed distance of the armadillo, voxel 0.8 (band 8 voxels)"),
     ("mickey", "materials") + CH6["mickey"],
     ("spheres", "materials") + CH6["spheres"],
     ("frog5", "materials") + CH6["frog5"],
@@ -133,7 +141,8 @@ def tetgen_alone(args, out, kind, target, our_volume, our_tets):
 
 
 def dataset(args, name, kind, src, mvars, desc, img):
-    probe = os.path.join(SHARED, {"nested": "iso2mesh-head", "spheres": "cleaver-spheres"}.get(src, src))
+    mesh_src = src.split(":", 2)[2] if src.startswith("sdf:") else None  # "sdf:VOXEL:mesh": its signed distance
+    probe = os.path.join(SHARED, {"nested": "iso2mesh-head", "spheres": "cleaver-spheres"}.get(src, mesh_src or src))
     if not os.path.exists(probe):
         log(f"{name}: {probe} not present, skipped")
         return None
@@ -141,7 +150,16 @@ def dataset(args, name, kind, src, mvars, desc, img):
     if not args.reuse and os.path.isdir(out):
         shutil.rmtree(out)
     os.makedirs(out, exist_ok=True)
-    inp = results_ch6.ch6_input(name, src, out) if kind == "materials" else os.path.join(SHARED, src)
+    if mesh_src:
+        inp = os.path.join(args.work, f"{name}_sdf.nrrd")
+        if not os.path.exists(inp):
+            log(f"{name}: signed distance of {mesh_src}")
+            run([os.path.join(args.bin, "volconv"), probe, inp, "--sdf", "--voxel", src.split(":")[1], "--band", "8",
+                 "-q"])
+    elif kind == "materials":
+        inp = results_ch6.ch6_input(name, src, out)
+    else:
+        inp = os.path.join(SHARED, src)
     target = "tets" if kind == "surface" else "materials-tets"
     cmd = ["make", "-s", "-f", os.path.join(ROOT, "Makefile.pipeline"), target, f"INPUT={inp}", f"OUT={out}",
            f"BIN={args.bin}", "QUIET=1", "TETS=mesh vtu"] + [f"{k}={v}" for k, v in mvars.items()]

@@ -96,11 +96,15 @@ TOOLS = {
     "meshstats": dict(kind="mesh", ext=".json", argv=lambda i, out: [i, "-o", out]),
     "baseline": dict(kind="volume", ext=".ply", argv=lambda i, out: ["mc", "-i", i, "--iso", "0", "-o", out]),
     "multiparticles": dict(kind="volume", ext=".ply", argv=lambda i, out: ["--materials", i, "--spacing", "0.5", "-o", out]),
+    "quadmesh": dict(kind="mesh", ext=".ply", argv=lambda i, out: [i, "-o", out]),
 }
 
 # Extra rows: (tool, case, argv, exit code, what the message must name).
 P, VOL = "particles", "volume"
 EXTRA = [
+    ("quadmesh", "STL output (triangles only)", [MISSING_M, "-o", o(".stl")], 2, o(".stl")),
+    ("quadmesh", "surface without types", [TET, "-o", o(".ply")], 1, TET),
+    ("quadmesh", "--max-fold -1", [TET, "-o", o(".ply"), "--max-fold", "-1"], 2, "--max-fold"),
     # a second input of the mesh tools is a volume (a field) or a point set
     ("tetlabel", "field missing", [SPHERE_PTS, "-i", MISSING_V, "--iso", "0", "-o", o(".ply")], 1, MISSING_V),
     ("tetlabel", "field 2-D", [SPHERE_PTS, "-i", PLANE, "--iso", "0", "-o", o(".ply")], 1, PLANE),
@@ -207,7 +211,7 @@ for t in present:
         rows.append((t, case, d["argv"](path, o(d["ext"])), code, path))
     good = {"volconv": SDF, "particles": SDF, "render": SPHERE_PTS, "morph": MASK, "gradlimit": SDF, "mcinit": SDF,
             "tighten": MASK, "medialaxis": SDF, "sizingfield": SDF, "tetlabel": SPHERE_PTS, "meshstats": TET,
-            "baseline": SDF, "multiparticles": MASK}[t]
+            "baseline": SDF, "multiparticles": MASK, "quadmesh": os.path.join(DATA, "typed_tet.ply")}[t]
     rows.append((t, "unwritable output", d["argv"](good, UNWRITABLE + d["ext"]), 1, UNWRITABLE + d["ext"]))
     # An output extension the tool cannot write is a usage error found before the
     # (here missing) input is opened: exit 2, not the missing file's exit 1.

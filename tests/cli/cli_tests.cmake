@@ -255,3 +255,7 @@ pm_cli_script(formats.every_viewer_opens formats_test.sh)
 # == cohorts: the Snakemake workflow (workflow/Snakefile) on three scans and a bad one; skips without snakemake
 pm_cli_script(workflow.cohort workflow_test.sh)
 set_tests_properties(cli.workflow.cohort PROPERTIES TIMEOUT 1500 SKIP_RETURN_CODE 77)
+# == quadmesh (issue 20): typed particles -> triangles -> quads, read back by meshio
+pm_cli_script(quadmesh.sphere quadmesh_test.sh)
+set_tests_properties(cli.quadmesh.sphere PROPERTIES SKIP_RETURN_CODE 77)
+pm_cli_test(quadmesh.help_example "Example:.*particles .*--quads" $<TARGET_FILE:quadmesh> --help)

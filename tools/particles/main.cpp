@@ -70,6 +70,7 @@ pm::Mesh to_mesh(const pm::ParticleResult& r) {
   m.vertex_scalars["energy"] = r.energy;
   m.vertex_scalars["spacing"] = r.spacing;
   m.vertex_scalars["curvature"] = r.curvature;
+  if (!r.types.empty()) m.vertex_scalars["type"].assign(r.types.begin(), r.types.end());
   return m;
 }
 
@@ -163,6 +164,10 @@ int main(int argc, char** argv) {
                       "spacing per iteration, re-checking it every 8 iterations (0 = off)")
       ->check(CLI::Range(0.0, 0.99))
       ->capture_default_str();
+  tool.app.add_flag("--quads", p.quads,
+                    "Quad packing (Chapter 7): two particle types, like pairs √2 farther apart than unlike ones, "
+                    "settling towards a checkerboard on a square lattice with unlike neighbours --spacing apart; "
+                    "writes a vertex property `type` (0/1) for quadmesh");
   bool volume = false;
   pm::VolumeRun vr;
   pm::MaterialOptions mo;
@@ -190,6 +195,8 @@ int main(int argc, char** argv) {
     pm::check_output_path(output, pm::OutputKind::points, "--output");
     p.seed = tool.flags.seed;
     p.energy = energy == "radial" ? pm::ParticleEnergy::radial : pm::ParticleEnergy::cotangent;
+    if (p.quads && (volume || !scenario.empty() || !hp_field.empty()))
+      throw pm::UsageError("--quads samples a surface: not with --volume, --scenario or --field");
     if (volume) {
       if (!scenario.empty() || !hp_field.empty() || !seeds_path.empty() || p.count)
         throw pm::UsageError("--scenario, --field, --init and --count do not apply with --volume");
@@ -256,7 +263,7 @@ int main(int argc, char** argv) {
                         {"coarse_to_fine", p.coarse_to_fine},
                         {"population_tolerance", p.population_tolerance},
                         {"seed_thinning", p.seed_thinning},
-                        {"settled_move", p.settled_move}};
+                        {"settled_move", p.settled_move}, {"quads", p.quads}};
     const std::unique_ptr<pm::ScalarField> field = load_field(implicit, input, kernel, p.iso);
     std::unique_ptr<pm::SizingField> sizing;
     if (!sizing_path.empty()) sizing = std::make_unique<pm::SizingField>(pm::read_volume(sizing_path), sizing_path);

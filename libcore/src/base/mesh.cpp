@@ -1,5 +1,7 @@
 #include "pm/base/mesh.h"
 
+#include <algorithm>
+
 #include "pm/base/error.h"
 
 namespace pm {
@@ -41,6 +43,26 @@ void compute_vertex_normals(Mesh& m) {
   }
   for (Vec3& v : n) v = normalized(v);
   m.normals = std::move(n);
+}
+
+std::size_t PolyMesh::quad_count() const {
+  return std::size_t(std::count_if(faces.begin(), faces.end(), [](const auto& f) { return f[3] >= 0; }));
+}
+
+void PolyMesh::validate(const std::string& what) const {
+  for (std::size_t f = 0; f < faces.size(); ++f) {
+    const int n = faces[f][3] >= 0 ? 4 : 3;
+    for (int k = 0; k < n; ++k) {
+      const int v = faces[f][std::size_t(k)];
+      if (v < 0 || std::size_t(v) >= vertices.size())
+        throw InputError(what + ": face " + std::to_string(f) + " has vertex index " + std::to_string(v) +
+                         "; expected an index in [0, " + std::to_string(vertices.size()) + ")");
+      for (int l = 0; l < k; ++l)
+        if (faces[f][std::size_t(l)] == v)
+          throw InputError(what + ": face " + std::to_string(f) + " repeats vertex " + std::to_string(v) +
+                           "; expected distinct corners");
+    }
+  }
 }
 
 }  // namespace pm

@@ -3,6 +3,7 @@
 #include "pm/base/atomic_file.h"
 #include "pm/base/error.h"
 #include "pm/io/mesh.h"
+#include "pm/io/poly_mesh.h"
 #include "pm/io/tet_mesh.h"
 #include "pm/io/volume_io.h"
 
@@ -15,6 +16,7 @@ const char* kind_name(OutputKind k) {
     case OutputKind::mesh: return "mesh";
     case OutputKind::points: return "point set";
     case OutputKind::tet_mesh: return "tetrahedral mesh";
+    case OutputKind::poly_mesh: return "polygon mesh";
     case OutputKind::png: return "image";
     case OutputKind::json: return "JSON";
   }
@@ -27,6 +29,7 @@ bool known(const std::string& path, OutputKind k) {
     case OutputKind::mesh: return is_mesh_path(path);
     case OutputKind::points: return is_mesh_path(path, true);
     case OutputKind::tet_mesh: return is_tet_mesh_path(path);
+    case OutputKind::poly_mesh: return is_poly_mesh_path(path);
     case OutputKind::png: return file_extension(path) == ".png";
     case OutputKind::json: return path == "-" || file_extension(path) == ".json";
   }
@@ -41,6 +44,7 @@ std::string output_extensions(OutputKind kind) {
     case OutputKind::mesh: return mesh_extensions();
     case OutputKind::points: return mesh_extensions(true);
     case OutputKind::tet_mesh: return tet_mesh_extensions();
+    case OutputKind::poly_mesh: return poly_mesh_extensions();
     case OutputKind::png: return ".png";
     case OutputKind::json: return ".json (or - for stdout)";
   }

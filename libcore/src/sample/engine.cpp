@@ -154,6 +154,8 @@ void set_quad_types(EngineParams& p) {
   p.types = 2;
   for (int a = 0; a < kMaxTypes; ++a)
     for (int b = 0; b < kMaxTypes; ++b) p.type_scale[a][b] = a == b ? std::sqrt(2.0) : 1.0;
+  p.alternate_types = true;
+  p.ideal_neighbours = 8;
 }
 
 double particle_pair_energy(ParticleEnergy e, double r, double& dE_dr) {

@@ -550,6 +550,43 @@ double ParticleEngine<C>::measure() {
   return e;
 }
 
+template <class C>
+std::size_t ParticleEngine<C>::retype() {
+  using namespace engine_constants;
+  rebin();
+  std::atomic<std::size_t> flips{0};
+  auto run_cells = [&](std::uint32_t b, std::uint32_t e) {
+    std::vector<Cand>& buf = tls_.local();
+    std::size_t local = 0;
+    for (std::uint32_t k = b; k != e; ++k) {
+      const std::uint32_t c = bins_.colour_cell(k);
+      for (std::uint32_t i = bins_.begin(c); i < bins_.end(c); ++i) {
+        Particle& P = parts_[i];
+        if (P.fixed) continue;
+        gather(P.p.x, radius_bound(P.spacing), i, c, buf);
+        const std::uint8_t other = std::uint8_t(1 - P.type);
+        const double e0 = energy_at(P.p.x, P.p.n, P.attr, P.type, buf, nullptr, nullptr);
+        const double e1 = energy_at(P.p.x, P.p.n, P.attr, other, buf, nullptr, nullptr);
+        // A margin keeps a particle between two equally good types from flipping back and forth.
+        if (e1 < (1 - kRetypeMargin) * e0) {
+          P.type = other;
+          P.spacing = local_spacing(P.attr, P.type);
+          ++local;
+        }
+      }
+    }
+    flips += local;
+  };
+  for (int colour = 0; colour < kColours; ++colour) {
+    const std::uint32_t b = bins_.colour_begin(colour), e = bins_.colour_end(colour);
+    if (b == e) continue;
+    pm::parallel_for(tbb::blocked_range<std::uint32_t>(b, e, 1), [&](const tbb::blocked_range<std::uint32_t>& r) {
+      run_cells(r.begin(), r.end());
+    });
+  }
+  return flips.load();
+}
+
 // --- population -----------------------------------------------------------------
 
 template <class C>
@@ -575,7 +612,8 @@ bool ParticleEngine<C>::population_control(std::uint64_t tag, bool final_check, 
       ++ndel;
     } else if (biased < c_.split_below(q.p) * ideal) {
       const double u = counter_uniform(p_.seed, q.id, tag, kStreamSplitDir);
-      kids.push_back({q.p.x + c_.split_offset(q.p, u, kSplitOffset * q.spacing), q.p, q.type});
+      kids.push_back({q.p.x + c_.split_offset(q.p, u, kSplitOffset * q.spacing), q.p,
+                      p_.alternate_types ? std::uint8_t(1 - q.type) : q.type});
       steps.push_back(q.spacing);
       parent.push_back(q.id);
     }
@@ -646,7 +684,7 @@ void ParticleEngine<C>::split_all() {
     const double th = 2 * kPi * counter_uniform(p_.seed, q.id, iteration_, kStreamQuad);
     const int k = c_.children(q.p, th, kQuadOffset * q.spacing, off);
     for (int c = 0; c < k; ++c) {
-      kids.push_back({q.p.x + off[c], q.p, q.type});
+      kids.push_back({q.p.x + off[c], q.p, p_.alternate_types ? std::uint8_t(q.type ^ (c & 1)) : q.type});
       from.push_back(i);
     }
   }
@@ -809,10 +847,11 @@ typename ParticleEngine<C>::LevelResult ParticleEngine<C>::relax(const std::stri
       since = 0;
       Stopwatch sp;
       bool changed = false;
+      if (p_.alternate_types) changed = retype() > 0;
       if (fixed_count)
-        changed = adapt_spacing();
+        changed = adapt_spacing() || changed;
       else if (p_.population_control)
-        changed = population_control(iteration_, conv, lr);
+        changed = population_control(iteration_, conv, lr) || changed;
       if (changed)
         for (Particle& q : parts_) q.quiet = 0;
       st_.seconds_population += sp.seconds();

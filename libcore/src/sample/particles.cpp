@@ -91,6 +91,7 @@ class SurfaceRun {
     e.spacing = p.spacing;
     e.density = p.density;
     e.alpha_cap = p.alpha_cap;
+    if (p.quads) set_quad_types(e);
     return e;
   }
   int coarse_levels(double base) const {
@@ -106,6 +107,10 @@ class SurfaceRun {
     return c;
   }
   void initialise(const std::vector<Vec3>& seeds, double lattice_step, ParticleResult& res);
+  // Quad packing: each initial point's type from the counter RNG (half each).
+  std::uint8_t init_type(std::size_t k) const {
+    return p_.quads ? std::uint8_t(counter_uniform(p_.seed, k, 0, kStreamType) < 0.5) : 0;
+  }
   void fill_to_count();
 
   const ScalarField& field_;
@@ -144,7 +149,7 @@ void SurfaceRun::initialise(const std::vector<Vec3>& seeds, double lattice_step,
   Vec3 example;
   for (std::size_t k = 0; k < xs.size(); ++k) {
     if (ok[k]) {
-      e_.add(placed[k]);
+      e_.add(placed[k], init_type(k));
     } else if (outside[k]) {
       if (nout++ == 0) example = placed[k].x;
     } else {
@@ -185,7 +190,7 @@ void SurfaceRun::fill_to_count() {
     std::vector<char> ok;
     e_.place_many(kids, kPlaceSteps, {}, placed, ok);
     for (std::size_t i = 0; i < need; ++i)
-      if (ok[i]) e_.add(placed[i]);
+      if (ok[i]) e_.add(placed[i], p_.quads ? std::uint8_t(1 - parts[i].type) : std::uint8_t(0));
   }
 }
 
@@ -247,6 +252,10 @@ ParticleResult SurfaceRun::run(const std::vector<Vec3>& seeds) {
   const auto& parts = e_.particles();
   const std::size_t n = parts.size();
   e_.export_points(res.positions, res.normals, res.energy, res.spacing);
+  if (p_.quads) {
+    res.types.resize(n);
+    for (std::size_t i = 0; i < n; ++i) res.types[i] = parts[i].type;
+  }
   res.curvature.resize(n);
   std::uint64_t nb = 0;
   double ideal = 0;

@@ -1,6 +1,7 @@
 #pragma once
 // Point sets and triangle meshes with named per-vertex scalar properties and
 // per-face integer properties. A point set is a Mesh with no faces.
+// PolyMesh: triangles and quads (quad-dominant meshes, issue #20).
 #include <array>
 #include <map>
 #include <string>
@@ -21,6 +22,16 @@ struct Mesh {
 
   bool has_normals() const { return !normals.empty(); }
   /// \throw InputError when sizes are inconsistent or a face index is out of range.
+  void validate(const std::string& what) const;
+};
+
+/// Triangles and quads over one vertex list; a triangle has face[3] == -1.
+/// Faces are oriented as the triangles they come from.
+struct PolyMesh {
+  std::vector<Vec3> vertices;
+  std::vector<std::array<int, 4>> faces;
+  std::size_t quad_count() const;
+  /// \throw InputError for an index out of range or repeated in a face.
   void validate(const std::string& what) const;
 };
 

@@ -12,6 +12,7 @@ enum class OutputKind {
   mesh,      ///< write_mesh: .ply .vtp .vtk .mesh .obj .off .stl
   points,    ///< point sets with their scalars: .ply .vtp .vtk
   tet_mesh,  ///< write_tet_mesh: .mesh .vtu .vtk .msh
+  poly_mesh, ///< write_poly_mesh (quads kept): .ply .obj .off
   png,       ///< .png
   json,      ///< .json, or "-" for stdout
 };

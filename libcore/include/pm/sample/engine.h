@@ -94,6 +94,7 @@ constexpr double kSizingSlack = 1.25;        ///< sizing: pair radius cap = 1.25
 constexpr double kSpacingSlack = 1.5;        ///< a move may grow the local spacing by at most this factor
 constexpr int kColours = 8;                  ///< bin colours (bx%2, by%2, bz%2)
 constexpr std::size_t kSerialBelow = 2000;   ///< sweeps of fewer particles run on one thread
+constexpr double kRetypeMargin = 0.02;      ///< quad packing: a particle changes type when that lowers its energy by more
 constexpr double kGatherMargin = 0.25;       ///< first gather covers trial moves up to 0.25 s_i
 constexpr double kListSkin = 0.5;            ///< neighbour lists: a particle may drift 0.5 s_i before a rebuild
 constexpr double kListsBelowMove = 0.25 * kListSkin;  ///< use lists once the largest move is below this (× s_i)
@@ -130,7 +131,8 @@ std::string engine_fmt(const Vec3& v);
 
 /// Random streams of the engine's counter RNG.
 enum EngineStream : std::uint64_t {
-  kStreamPopulation = 1, kStreamSplitDir, kStreamInitX, kStreamInitY, kStreamInitZ, kStreamQuad
+  kStreamPopulation = 1, kStreamSplitDir, kStreamInitX, kStreamInitY, kStreamInitZ, kStreamQuad,
+  kStreamType
 };
 
 /// Why a constraint could not project a point.
@@ -218,6 +220,15 @@ struct EngineParams {
   bool keep_covered = false;
   /// Per-type pair distance factors t(a, b) (symmetric), see set_types().
   int types = 1;
+  /// Two-type checkerboards (set_quad_types): a population split makes a
+  /// particle of the other type (the nearest neighbour of a checkerboard
+  /// square is unlike), and the coarse-to-fine split's 4 square corners
+  /// alternate their types.
+  bool alternate_types = false;
+  /// Neighbours of the ideal packing for the ideal energy (0 = the
+  /// constraint's: 6 on a surface); a checkerboard of two types has 8 at
+  /// r = β (4 unlike, 4 like on the diagonals).
+  double ideal_neighbours = 0;
   double type_scale[engine_constants::kMaxTypes][engine_constants::kMaxTypes] = {{1, 1, 1, 1}, {1, 1, 1, 1},
                                                                                  {1, 1, 1, 1}, {1, 1, 1, 1}};
   /// Skip updating a particle whose last accepted move was shorter than
@@ -272,7 +283,8 @@ struct SurfaceRules {
 
 /// Distance factors for two-type quad packing (Meyer 2008, Chapter 7):
 /// like pairs sit √2 farther apart than unlike pairs (the diagonal of a
-/// checkerboard square), t(a, a) = √2, t(a, b) = 1.
+/// checkerboard square), t(a, a) = √2, t(a, b) = 1; splits alternate the
+/// types and the ideal packing has 8 neighbours.
 void set_quad_types(EngineParams& p);
 
 /// Uniform bins of one width over a point set, the 3x3x3 block of every
@@ -405,6 +417,10 @@ class ParticleEngine {
   /// Fresh (Jacobi) energies and neighbour counts; returns Σ E_i over the
   /// active particles.
   double measure();
+  /// Two-type checkerboards (EngineParams::alternate_types): every active
+  /// particle takes the type with the lower energy among its neighbours (bin
+  /// colours in turn, so deterministic); returns the number that changed.
+  std::size_t retype();
 
   // --- access -----------------------------------------------------------
   /// Reorder the particles stably by key(particle) (ascending).
@@ -436,7 +452,9 @@ class ParticleEngine {
   std::uint64_t iteration() const { return iteration_; }
   const C& constraint() const { return c_; }
   /// Ideal energy n E(β) of particle q.
-  double ideal_energy(const Particle& q) const { return c_.ideal_neighbours(q.p) * e_beta_; }
+  double ideal_energy(const Particle& q) const {
+    return (p_.ideal_neighbours > 0 ? p_.ideal_neighbours : c_.ideal_neighbours(q.p)) * e_beta_;
+  }
   /// Pair scale α_ij of two particles.
   double pair_alpha(const Particle& a, const Particle& b) const {
     return alpha(a.attr, b.attr, a.type, b.type);

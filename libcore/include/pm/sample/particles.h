@@ -70,6 +70,11 @@ struct ParticleParams {
   /// anchors its component).
   double seed_thinning = 0;
   int reproject_steps = engine_constants::kReprojectSteps;  ///< (Gauss-)Newton steps after a tangent move (>= 1)
+  /// Quad packing (SPEC §7, issue #20): two particle types, mixed at random
+  /// (half each) at initialisation; like pairs repel √2 farther than unlike
+  /// ones (pm::set_quad_types), so the packing settles towards a checkerboard
+  /// on a square lattice whose unlike neighbours sit `spacing` apart.
+  bool quads = false;
 };
 
 struct ParticleResult {
@@ -78,6 +83,7 @@ struct ParticleResult {
   std::vector<double> energy;     ///< #N particle energy E_i (σ = 1 units)
   std::vector<double> spacing;    ///< #N local spacing s_i = β/α_ii, world units
   std::vector<double> curvature;  ///< #N curvedness C = sqrt(κ1² + κ2²), 1/world units
+  std::vector<int> types;         ///< #N particle type 0 or 1 with `quads`, else empty
 
   int iterations = 0;             ///< sweeps over all levels
   int levels = 1;                 ///< coarse-to-fine levels run (1 = single level)

@@ -1,0 +1,111 @@
+#include "pm/io/poly_mesh.h"
+
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+
+#include "pm/base/atomic_file.h"
+#include "pm/base/error.h"
+
+namespace pm {
+namespace {
+
+std::string num(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.17g", v);
+  return b;
+}
+
+template <class T>
+void put(std::string& out, T v) {
+  char b[sizeof(T)];
+  std::memcpy(b, &v, sizeof(T));
+  out.append(b, sizeof(T));  // little-endian hosts only (x86-64, arm64), as write_ply
+}
+
+std::string ply(const PolyMesh& m, const std::vector<Vec3>& x, WorldFrame frame, bool binary) {
+  std::string out = "ply\nformat ";
+  out += binary ? "binary_little_endian 1.0\n" : "ascii 1.0\n";
+  out += "comment written by particlemesh " PM_VERSION " (quad-dominant)\n";
+  out += std::string("comment frame ") + frame_name(frame) + " SPACE=" + frame_name(frame) + "\n";
+  out += "element vertex " + std::to_string(x.size()) + "\nproperty double x\nproperty double y\nproperty double z\n";
+  out += "element face " + std::to_string(m.faces.size()) + "\nproperty list uchar int vertex_indices\nend_header\n";
+  for (const Vec3& v : x) {
+    if (binary) {
+      put(out, v.x);
+      put(out, v.y);
+      put(out, v.z);
+    } else {
+      out += num(v.x) + " " + num(v.y) + " " + num(v.z) + "\n";
+    }
+  }
+  for (const auto& f : m.faces) {
+    const int n = f[3] >= 0 ? 4 : 3;
+    if (binary) {
+      put(out, std::uint8_t(n));
+      for (int k = 0; k < n; ++k) put(out, std::int32_t(f[std::size_t(k)]));
+    } else {
+      out += std::to_string(n);
+      for (int k = 0; k < n; ++k) out += " " + std::to_string(f[std::size_t(k)]);
+      out += "\n";
+    }
+  }
+  return out;
+}
+
+std::string obj(const PolyMesh& m, const std::vector<Vec3>& x, WorldFrame frame) {
+  std::string out = "# written by particlemesh " PM_VERSION " (quad-dominant)\n";
+  out += std::string("# frame ") + frame_name(frame) + " SPACE=" + frame_name(frame) + "\n";
+  for (const Vec3& v : x) out += "v " + num(v.x) + " " + num(v.y) + " " + num(v.z) + "\n";
+  for (const auto& f : m.faces) {
+    out += "f";
+    for (int k = 0; k < (f[3] >= 0 ? 4 : 3); ++k) out += " " + std::to_string(f[std::size_t(k)] + 1);
+    out += "\n";
+  }
+  return out;
+}
+
+std::string off(const PolyMesh& m, const std::vector<Vec3>& x) {
+  std::string out = "OFF\n" + std::to_string(x.size()) + " " + std::to_string(m.faces.size()) + " 0\n";
+  for (const Vec3& v : x) out += num(v.x) + " " + num(v.y) + " " + num(v.z) + "\n";
+  for (const auto& f : m.faces) {
+    const int n = f[3] >= 0 ? 4 : 3;
+    out += std::to_string(n);
+    for (int k = 0; k < n; ++k) out += " " + std::to_string(f[std::size_t(k)]);
+    out += "\n";
+  }
+  return out;
+}
+
+}  // namespace
+
+bool is_poly_mesh_path(const std::string& path) {
+  const std::string e = file_extension(path);
+  return e == ".ply" || e == ".obj" || e == ".off";
+}
+
+std::string poly_mesh_extensions() { return ".ply .obj .off"; }
+
+void write_poly_mesh(const PolyMesh& m, const std::string& path, WorldFrame frame, bool binary) {
+  const std::string e = file_extension(path);
+  if (!is_poly_mesh_path(path))
+    throw UsageError(quote(path) + ": " + (e.empty() ? std::string("no extension") : "extension " + quote(e)) +
+                     (e == ".stl" ? " holds triangles only" : " is not a polygon mesh format") +
+                     "; expected " + poly_mesh_extensions() + " for a quad-dominant mesh");
+  m.validate(quote(path));
+  Mesh pts;
+  pts.vertices = m.vertices;
+  convert_frame(pts, WorldFrame::lps, frame);
+  const std::string text = e == ".ply" ? ply(m, pts.vertices, frame, binary)
+                           : e == ".obj" ? obj(m, pts.vertices, frame)
+                                         : off(m, pts.vertices);
+  write_atomically(path, [&](const std::string& tmp) {
+    std::ofstream f(tmp, std::ios::binary);
+    f.write(text.data(), std::streamsize(text.size()));
+    f.close();
+    if (!f) throw IoError("cannot write " + quote(path));
+  });
+}
+
+}  // namespace pm

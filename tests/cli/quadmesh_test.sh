@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# Quad packing end to end (issue #20): particles --quads on a sphere writes two
+# balanced types; tetlabel meshes them; quadmesh pairs the triangles into quads
+# and writes .ply .obj .off with the quads kept, which meshio (an independent
+# reader; OFF parsed here, meshio reads triangles only) opens with the same
+# quad and triangle counts as our --stats; the
+# mesh is closed (every edge in two faces) with Euler characteristic 2.
+set -euo pipefail
+BIN=$1; SRC=$2
+T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
+PY=/usr/bin/python3
+"$BIN/particles" --implicit sphere:r=1 --spacing 0.12 --quads -o "$T/typed.ply" -q --stats "$T/p.json"
+"$BIN/tetlabel" "$T/typed.ply" --implicit sphere:r=1 --iso 0 -o "$T/tri.ply" -q
+for ext in ply obj off; do
+  "$BIN/quadmesh" "$T/tri.ply" --types "$T/typed.ply" -o "$T/quads.$ext" -q --stats "$T/q_$ext.json"
+done
+# The surface has no type of its own: without --types it is refused, naming the file.
+if "$BIN/quadmesh" "$T/tri.ply" -o "$T/x.ply" -q 2> "$T/err"; then echo "no-type surface accepted"; exit 1; fi
+grep -q "tri.ply.*no vertex property .type." "$T/err"
+test ! -e "$T/x.ply"
+$PY - "$T" <<'PY'
+import json, sys
+import numpy as np
+T = sys.argv[1]
+try:
+    import meshio
+except ImportError:
+    sys.exit(77)
+# particles --quads: two types, about half each (the initial mix is 50/50, splits alternate).
+m = meshio.read(f"{T}/typed.ply")
+t = np.asarray(m.point_data["type"])
+assert set(np.unique(t)) <= {0.0, 1.0}, np.unique(t)
+share = t.mean()
+assert 0.35 < share < 0.65, share
+q = json.load(open(f"{T}/q_ply.json"))["quality"]
+assert q["watertight"], q
+assert q["quads"] > 0.7 * q["faces"], q  # a sphere packing: most faces are quads
+def read_off(path):  # meshio's OFF reader takes triangles only: the format is simple enough to parse here
+    tok = open(path).read().split()
+    assert tok[0] == "OFF"
+    nv, nf = int(tok[1]), int(tok[2])
+    pts = np.array(tok[4:4 + 3 * nv], float).reshape(nv, 3)
+    faces, i = [], 4 + 3 * nv
+    for _ in range(nf):
+        n = int(tok[i]); faces.append([int(x) for x in tok[i + 1:i + 1 + n]]); i += 1 + n
+    assert i == len(tok)
+    return pts, faces
+for ext in ("ply", "obj", "off"):
+    if ext == "off":
+        points, faces = read_off(f"{T}/quads.off")
+    else:
+        mesh = meshio.read(f"{T}/quads.{ext}")
+        points, faces = mesh.points, [f for c in mesh.cells for f in c.data.tolist()]
+    cells = {3: 0, 4: 0}
+    for f in faces:
+        cells[len(f)] += 1
+    assert cells[4] == q["quads"], (ext, cells, q["quads"])
+    assert cells[3] == q["triangles"], (ext, cells, q["triangles"])
+    edges = {}
+    for f in faces:
+        for i in range(len(f)):
+            e = tuple(sorted((f[i], f[(i + 1) % len(f)])))
+            edges[e] = edges.get(e, 0) + 1
+    assert all(n == 2 for n in edges.values()), ext
+    used = len({v for f in faces for v in f})
+    assert used - len(edges) + len(faces) == 2, (ext, used, len(edges), len(faces))
+    # Points on the unit sphere, in double precision from our writer (|r| - 1 is the packing's own 1e-6).
+    r = np.linalg.norm(points, axis=1)
+    assert np.abs(r - 1).max() < 1e-4, (ext, np.abs(r - 1).max())
+print("ok")
+PY

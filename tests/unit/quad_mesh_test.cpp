@@ -1,0 +1,122 @@
+// Quad-dominant meshes (pm/mesh/quad_mesh.h, issue #20): a checkerboard-typed
+// triangulated grid must come back as exact unit squares; a cube's surface
+// keeps its topology (V - E + F = 2); bad input is refused.
+#include "pm/mesh/quad_mesh.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+
+#include "pm/base/error.h"
+
+namespace pm {
+namespace {
+
+// The closed surface of an n x n x n cube of unit cells, each square split
+// along a diagonal between like corners of the checkerboard type
+// (i + j + k) % 2, so dropping like edges recovers every square.
+Mesh checker_cube(int n, std::vector<int>& type) {
+  Mesh m;
+  std::map<std::array<int, 3>, int> id;
+  auto vid = [&](int i, int j, int k) {
+    const auto it = id.find({i, j, k});
+    if (it != id.end()) return it->second;
+    const int v = int(m.vertices.size());
+    id[{i, j, k}] = v;
+    m.vertices.push_back(Vec3(i, j, k));
+    type.push_back((i + j + k) % 2);
+    return v;
+  };
+  // A face square with corners c0..c3 counter-clockwise seen from outside.
+  auto square = [&](std::array<int, 3> c0, std::array<int, 3> du, std::array<int, 3> dv) {
+    auto at = [&](int a, int b) { return vid(c0[0] + a * du[0] + b * dv[0], c0[1] + a * du[1] + b * dv[1], c0[2] + a * du[2] + b * dv[2]); };
+    const int p0 = at(0, 0), p1 = at(1, 0), p2 = at(1, 1), p3 = at(0, 1);
+    // Split along the diagonal whose ends have the same type: p0-p2 are like.
+    m.faces.push_back({p0, p1, p2});
+    m.faces.push_back({p0, p2, p3});
+  };
+  for (int a = 0; a < n; ++a)
+    for (int b = 0; b < n; ++b) {
+      square({a, b, 0}, {0, 1, 0}, {1, 0, 0});      // z = 0, outward -z
+      square({a, b, n}, {1, 0, 0}, {0, 1, 0});      // z = n, +z
+      square({a, 0, b}, {1, 0, 0}, {0, 0, 1});      // y = 0, -y
+      square({a, n, b}, {0, 0, 1}, {1, 0, 0});      // y = n, +y
+      square({0, a, b}, {0, 0, 1}, {0, 1, 0});      // x = 0, -x
+      square({n, a, b}, {0, 1, 0}, {0, 0, 1});      // x = n, +x
+    }
+  return m;
+}
+
+TEST(QuadMesh, CheckerboardCubeGivesEverySquare) {
+  std::vector<int> type;
+  const Mesh m = checker_cube(4, type);
+  const QuadResult r = quad_dominant(m, type);
+  EXPECT_EQ(r.like_merges, 6u * 16);
+  EXPECT_EQ(r.leftover_merges, 0u);
+  EXPECT_EQ(r.triangles_left, 0u);
+  const QuadQuality q = quad_quality(r.mesh);
+  EXPECT_EQ(q.quads, 96u);
+  EXPECT_DOUBLE_EQ(q.quad_share(), 1.0);
+  EXPECT_NEAR(q.corner_min, 90.0, 1e-9);
+  EXPECT_NEAR(q.corner_max, 90.0, 1e-9);
+  EXPECT_DOUBLE_EQ(q.corner_share_70_110(), 1.0);
+  EXPECT_NEAR(q.jacobian_min, 1.0, 1e-12);  // squares, outward
+  EXPECT_EQ(q.boundary_edges, 0u);
+  EXPECT_EQ(q.nonmanifold_edges, 0u);
+  // Valence: 8 cube corners have 3 edges, every other vertex 4.
+  EXPECT_EQ(q.irregular, 8u);
+  EXPECT_EQ(q.valence4, q.vertices - 8);
+  // Euler characteristic of the sphere: V - E + F = 2, E = 4 F / 2 for quads.
+  EXPECT_EQ(long(q.vertices) - long(2 * q.quads) + long(q.quads), 2);
+}
+
+TEST(QuadMesh, LeftoversPairAcrossUnlikeEdgesOrStay) {
+  // A type defect at a cube corner: the triangles around it have no like
+  // diagonal to drop; they pair across unlike edges where the quad is good
+  // enough, or stay triangles. Either way every triangle is used once and the
+  // mesh stays closed.
+  std::vector<int> type;
+  const Mesh m = checker_cube(2, type);
+  std::vector<int> flipped = type;
+  flipped[0] = 1 - flipped[0];  // a defect: vertex (0,0,0) has the wrong type
+  QuadParams p;
+  const QuadResult r = quad_dominant(m, flipped, p);
+  const QuadQuality q = quad_quality(r.mesh);
+  EXPECT_EQ(q.boundary_edges, 0u);
+  EXPECT_EQ(q.nonmanifold_edges, 0u);
+  EXPECT_GT(r.leftover_merges + r.triangles_left, 0u);  // the defect shows
+  EXPECT_EQ(2 * q.quads + q.triangles, m.faces.size());  // every triangle is used once
+  p.pair_leftovers = false;
+  const QuadResult s = quad_dominant(m, flipped, p);
+  EXPECT_EQ(s.leftover_merges, 0u);
+  EXPECT_GE(s.triangles_left, r.triangles_left);
+}
+
+TEST(QuadMesh, FoldsAreNotMerged) {
+  // Two triangles of a tetrahedron meet at 70.5 degrees between faces (a fold of
+  // 109.5 degrees between normals): never one quad.
+  Mesh m;
+  m.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  m.faces = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+  const QuadResult r = quad_dominant(m, {0, 0, 1, 1});
+  EXPECT_EQ(r.like_merges + r.leftover_merges, 0u);
+  EXPECT_EQ(r.triangles_left, 4u);
+}
+
+TEST(QuadMesh, BadInputIsRefused) {
+  std::vector<int> type;
+  Mesh m = checker_cube(1, type);
+  type.pop_back();
+  EXPECT_THROW(quad_dominant(m, type), InputError);
+  type.push_back(0);
+  m.faces.push_back(m.faces[0]);  // an edge in three triangles
+  EXPECT_THROW(quad_dominant(m, type), InputError);
+  PolyMesh bad;
+  bad.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  bad.faces = {{0, 1, 1, -1}};
+  EXPECT_THROW(quad_quality(bad), InputError);
+}
+
+}  // namespace
+}  // namespace pm
