@@ -1,6 +1,5 @@
 #include "pm/cli/conform_tets.h"
 
-#include <cstdio>
 #include <optional>
 #include <stdexcept>
 
@@ -15,12 +14,6 @@
 
 namespace pm {
 namespace {
-
-std::string num(double v) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%.9g", v);
-  return b;
-}
 
 // The interface mesh's per-triangle label pairs (face properties label_a, label_b).
 std::vector<std::array<int, 2>> interface_labels(const Mesh& m, const std::string& path) {
@@ -154,7 +147,7 @@ void run_conform(const ConformRun& r) {
   if (res.split_vote_regions > 0)
     info(std::to_string(res.split_vote_regions) + " of " + std::to_string(res.regions) +
          " regions were labelled by a split vote of their tetrahedra (the smallest winning share " +
-         num(res.min_vote_share) + " of a region's volume)");
+         format_number(res.min_vote_share) + " of a region's volume)");
   {
     ScopedStage w("write");
     for (const std::string& f : r.tets) write_tet_mesh(res.mesh, f, {r.frame});

@@ -1,4 +1,5 @@
 // Gmsh MSH 4.1 ASCII writer and MSH 4.1 / 2.2 reader (see pm/io/gmsh.h).
+#include "pm/io/number_text.h"
 #include "pm/io/gmsh.h"
 
 #include <algorithm>
@@ -27,9 +28,12 @@ std::string bounding_box(const LabelledTets& t, const std::vector<std::array<int
         lo[c] = std::min(lo[c], t.vertices[std::size_t(v)][c]);
         hi[c] = std::max(hi[c], t.vertices[std::size_t(v)][c]);
       }
-  char b[160];
-  std::snprintf(b, sizeof b, "%.17g %.17g %.17g %.17g %.17g %.17g", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
-  return b;
+  std::string s;
+  for (double v : {lo.x, lo.y, lo.z, hi.x, hi.y, hi.z}) {
+    if (!s.empty()) s += ' ';
+    append_number(s, v);
+  }
+  return s;
 }
 
 }  // namespace
@@ -60,7 +64,6 @@ void write_gmsh(const LabelledTets& t, const std::string& path, WorldFrame frame
   for (const auto& [pr, v] : by_pair) surface[pr] = ++next;
 
   std::string o;
-  char b[96];
   o += "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n";
   o += std::string("$Comments\nwritten by particlemesh " PM_VERSION ", frame ") + frame_name(frame) +
        " SPACE=" + frame_name(frame) + "\n$EndComments\n";
@@ -88,8 +91,12 @@ void write_gmsh(const LabelledTets& t, const std::string& path, WorldFrame frame
   o += "3 " + std::to_string(first) + " 0 " + std::to_string(nv) + "\n";
   for (std::size_t i = 0; i < nv; ++i) o += std::to_string(i + 1) + "\n";
   for (const Vec3& p : t.vertices) {
-    std::snprintf(b, sizeof b, "%.17g %.17g %.17g\n", p.x, p.y, p.z);
-    o += b;
+    append_number(o, p.x);
+    o += ' ';
+    append_number(o, p.y);
+    o += ' ';
+    append_number(o, p.z);
+    o += '\n';
   }
   o += "$EndNodes\n";
   // Element tags: the tetrahedra 1..#T, then the triangles #T+1..#T+#B.

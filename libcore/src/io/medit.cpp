@@ -1,10 +1,10 @@
 // MEDIT .mesh reader and writers (see pm/io/medit.h).
+#include "pm/io/number_text.h"
 #include "pm/io/medit.h"
 
 #include <algorithm>
 #include <cctype>
 #include <cmath>
-#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <limits>
@@ -26,11 +26,7 @@ class Out {
  public:
   explicit Out(std::string where) : where_(std::move(where)) {}
   std::string s;
-  void num(double v) {
-    char b[32];
-    const int n = std::snprintf(b, sizeof b, "%.17g", v);
-    s.append(b, std::size_t(n));
-  }
+  void num(double v) { append_number(s, v); }
   void save(const std::string& path) const {
     std::ofstream os(path, std::ios::binary);
     if (!os) throw IoError(where_ + ": cannot open for writing");

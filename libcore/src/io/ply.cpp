@@ -1,4 +1,5 @@
 // PLY reader and writer (see pm/io/ply.h).
+#include "pm/io/number_text.h"
 #include "pm/io/ply.h"
 
 #include <algorithm>
@@ -485,14 +486,12 @@ void write_ply(const Mesh& m, const std::string& path, bool binary_wanted, World
     if (swap) std::reverse(b, b + n);
     out.append(reinterpret_cast<const char*>(b), n);
   };
-  char buf[64];
   auto put_float = [&](double v, bool last) {
     if (doubles) {
       if (binary) {
         put_bytes(&v, 8);
       } else {
-        const int n = std::snprintf(buf, sizeof buf, "%.17g", v);
-        out.append(buf, std::size_t(n));
+        append_number(out, v);
         out += last ? '\n' : ' ';
       }
       return;
@@ -501,8 +500,7 @@ void write_ply(const Mesh& m, const std::string& path, bool binary_wanted, World
     if (binary) {
       put_bytes(&f, 4);
     } else {
-      const int n = std::snprintf(buf, sizeof buf, "%.9g", double(f));
-      out.append(buf, std::size_t(n));
+      append_number(out, double(f), kFloatDigits);
       out += last ? '\n' : ' ';
     }
   };

@@ -1,7 +1,7 @@
+#include "pm/io/number_text.h"
 #include "pm/io/poly_mesh.h"
 
 #include <cstdint>
-#include <cstdio>
 #include <cstring>
 #include <fstream>
 
@@ -11,11 +11,7 @@
 namespace pm {
 namespace {
 
-std::string num(double v) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%.17g", v);
-  return b;
-}
+std::string num(double v) { return number_text(v); }
 
 template <class T>
 void put(std::string& out, T v) {

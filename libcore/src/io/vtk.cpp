@@ -1,5 +1,6 @@
 // VTK legacy and XML writers, the legacy POLYDATA reader and the legacy
 // UNSTRUCTURED_GRID tetrahedra reader (see pm/io/vtk.h).
+#include "pm/io/number_text.h"
 #include "pm/io/vtk.h"
 
 #include <algorithm>
@@ -41,9 +42,8 @@ class LegacyOut {
   LegacyOut(std::string& out, bool binary) : out_(out), binary_(binary) {}
   void f64(double v) {
     if (!binary_) {
-      char b[32];
-      const int n = std::snprintf(b, sizeof b, "%.17g ", v);
-      out_.append(b, std::size_t(n));
+      append_number(out_, v);
+      out_ += ' ';
       return;
     }
     std::uint64_t u;
@@ -142,9 +142,8 @@ void xml_open_array(std::string& out, const char* type, const std::string& name,
 void xml_close_array(std::string& out) { out += "\n        </DataArray>\n"; }
 
 void xml_f64(std::string& out, double v) {
-  char b[32];
-  const int n = std::snprintf(b, sizeof b, "%.17g ", v);
-  out.append(b, std::size_t(n));
+  append_number(out, v);
+  out += ' ';
 }
 
 void xml_vec3s(std::string& out, const char* name, const std::vector<Vec3>& v) {

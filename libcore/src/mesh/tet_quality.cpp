@@ -173,14 +173,21 @@ TetQuality tet_quality(const LabelledTets& t) {
   const Partial all = tbb::parallel_deterministic_reduce(
       tbb::blocked_range<std::size_t>(0, nt, 8192), Partial{},
       [&](const tbb::blocked_range<std::size_t>& r, Partial acc) {
+        // Materials come in long runs: look the map up only when it changes.
+        int last_material = 0;
+        TetStats* mat = nullptr;
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
+          if (!mat || t.materials[i] != last_material) {
+            last_material = t.materials[i];
+            mat = &acc.materials[last_material];
+          }
           const auto& c = t.tets[i];
           const Vec3 &a = t.vertices[std::size_t(c[0])], &b = t.vertices[std::size_t(c[1])],
                      &cc = t.vertices[std::size_t(c[2])], &d = t.vertices[std::size_t(c[3])];
           const std::array<double, 6> cs = normal_cosines(a, b, cc, d);
           const double rr = tet_radius_ratio(a, b, cc, d), vol = signed_volume(a, b, cc, d);
           add_tet(acc.overall, cs, rr, vol);
-          add_tet(acc.materials[t.materials[i]], cs, rr, vol);
+          add_tet(*mat, cs, rr, vol);
           for (int f = 0; f < 4; ++f) {
             std::uint32_t v[3] = {std::uint32_t(c[std::size_t(kFace[f][0])]), std::uint32_t(c[std::size_t(kFace[f][1])]),
                                   std::uint32_t(c[std::size_t(kFace[f][2])])};
