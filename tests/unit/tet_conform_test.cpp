@@ -346,7 +346,8 @@ TEST(TetConform, InteriorPointsOfSliversAreRemovedAndMeshedAgain) {
   p.min_dihedral = 0;
   p.optimise = false;
   p.exude_rounds = 0;
-  p.smooth_sweeps = 0;  // smoothing would move the point off the triangle too
+  p.smooth_sweeps = 0;         // smoothing would move the point off the triangle too
+  p.boundary_clearance = 0;    // which would drop the point before meshing (next test)
   const ConformResult kept = conforming_tets(s, pairs(s.faces.size(), 0, 1), inner, ball_label, 0, p);
   ASSERT_LT(kept.steps.back().quality.overall.dihedral_min, 12.0);
   p.exude_rounds = 2;
@@ -357,6 +358,46 @@ TEST(TetConform, InteriorPointsOfSliversAreRemovedAndMeshedAgain) {
   for (const Vec3& v : r.mesh.vertices) EXPECT_GT(norm(v - inner.back()), 1e-12);
   EXPECT_GT(r.steps.back().quality.overall.dihedral_min, kept.steps.back().quality.overall.dihedral_min);
   EXPECT_EQ(r.mesh.triangles, s.faces);  // the boundary is untouched
+}
+
+TEST(TetConform, PointsTooCloseToTheBoundaryAreDroppedBeforeMeshing) {
+  // The same point 1e-3 above a triangle (edges ~0.3) and one 0.05 above
+  // another: both within 0.2 of the longest edge, so both go before the
+  // first meshing, which then has no flat tetrahedron on them; points
+  // farther than that stay.
+  const Mesh s = icosphere(2, 1.0);
+  auto above = [&](std::size_t t, double height) {
+    const auto& f = s.faces[t];
+    const Vec3 c = (s.vertices[std::size_t(f[0])] + s.vertices[std::size_t(f[1])] + s.vertices[std::size_t(f[2])]) / 3.0;
+    return c * (1 - height / norm(c));
+  };
+  double longest = 0;
+  for (const auto& f : s.faces)
+    for (int k = 0; k < 3; ++k)
+      longest = std::max(longest, norm(s.vertices[std::size_t(f[(k + 1) % 3])] - s.vertices[std::size_t(f[k])]));
+  std::vector<Vec3> inner = bcc_ball(1, 0.2, 0.14);
+  const std::size_t lattice = inner.size();
+  inner.push_back(above(0, 1e-3));
+  inner.push_back(above(40, 0.05));
+  ConformParams p = quiet();
+  p.min_dihedral = 0;
+  p.optimise = false;
+  p.exude_rounds = 0;
+  p.smooth_sweeps = 0;
+  ASSERT_LT(0.05, 0.2 * longest);
+  ASSERT_LT(0.2 * longest, 0.14);  // the lattice keeps more than the clearance
+  const ConformResult r = conforming_tets(s, pairs(s.faces.size(), 0, 1), inner, ball_label, 0, p);
+  EXPECT_EQ(r.interior_near_boundary, 2u);
+  EXPECT_EQ(r.interior_kept, lattice);
+  EXPECT_EQ(r.interior_exuded, 0u);
+  p.boundary_clearance = 0;
+  const ConformResult all = conforming_tets(s, pairs(s.faces.size(), 0, 1), inner, ball_label, 0, p);
+  EXPECT_EQ(all.interior_near_boundary, 0u);
+  EXPECT_EQ(all.interior_kept, lattice + 2);
+  EXPECT_LT(all.steps.back().quality.overall.dihedral_min, 5.0);
+  EXPECT_GT(r.steps.back().quality.overall.dihedral_min, all.steps.back().quality.overall.dihedral_min);
+  p.boundary_clearance = 1;
+  EXPECT_THROW(conforming_tets(s, pairs(s.faces.size(), 0, 1), inner, ball_label, 0, p), UsageError);
 }
 
 }  // namespace

@@ -139,11 +139,12 @@ void run_conform(const ConformRun& r) {
   for (int m : res.self_intersection_untested)
     warn(quote(r.surface) + ": the surface of material " + std::to_string(m) +
          " is not a manifold polygon mesh (parts touching at a vertex): not tested for self-intersections");
-  if (res.interior_outside + res.interior_near_point + res.interior_refused > 0)
+  if (res.interior_outside + res.interior_near_point + res.interior_near_boundary + res.interior_refused > 0)
     info(quote(r.interior) + ": " + std::to_string(res.interior_kept) + " of " + std::to_string(res.interior_given) +
          " interior points kept (" + std::to_string(res.interior_outside) + " outside every material, " +
-         std::to_string(res.interior_near_point) + " on the surface or on another point, " + std::to_string(res.interior_refused) +
-         " refused by TetGen)");
+         std::to_string(res.interior_near_point) + " on the surface or on another point, " +
+         std::to_string(res.interior_near_boundary) + " too close to a boundary triangle, " +
+         std::to_string(res.interior_refused) + " refused by TetGen)");
   if (res.split_vote_regions > 0)
     info(std::to_string(res.split_vote_regions) + " of " + std::to_string(res.regions) +
          " regions were labelled by a split vote of their tetrahedra (the smallest winning share " +

@@ -126,12 +126,20 @@ double triangle_distance2(const Vec3& x, const Vec3& a, const Vec3& b, const Vec
 // for "is any triangle within h of x?".
 class TriangleGrid {
  public:
-  TriangleGrid(const std::vector<Vec3>& v, const std::vector<std::array<int, 3>>& t, double cell, double h)
-      : v_(v), t_(t), cell_(cell), h_(h) {
+  /// Points within h of a triangle, plus `relative` times the triangle's
+  /// longest edge.
+  TriangleGrid(const std::vector<Vec3>& v, const std::vector<std::array<int, 3>>& t, double cell, double h,
+               double relative = 0)
+      : v_(v), t_(t), cell_(cell), h_(t.size(), h) {
     for (std::size_t f = 0; f < t.size(); ++f) {
       Box bb;
-      for (int i : t[f]) bb.extend(v[std::size_t(i)]);
-      const auto lo = key(bb.lo - Vec3{h, h, h}), hi = key(bb.hi + Vec3{h, h, h});
+      double longest = 0;
+      for (int k = 0; k < 3; ++k) {
+        bb.extend(v[std::size_t(t[f][k])]);
+        longest = std::max(longest, norm(v[std::size_t(t[f][(k + 1) % 3])] - v[std::size_t(t[f][k])]));
+      }
+      const double hf = h_[f] += relative * longest;
+      const auto lo = key(bb.lo - Vec3{hf, hf, hf}), hi = key(bb.hi + Vec3{hf, hf, hf});
       for (long i = lo[0]; i <= hi[0]; ++i)
         for (long j = lo[1]; j <= hi[1]; ++j)
           for (long k = lo[2]; k <= hi[2]; ++k) cells_[{i, j, k}].push_back(int(f));
@@ -142,7 +150,8 @@ class TriangleGrid {
     if (it == cells_.end()) return false;
     for (int f : it->second) {
       const auto& t = t_[std::size_t(f)];
-      if (triangle_distance2(x, v_[std::size_t(t[0])], v_[std::size_t(t[1])], v_[std::size_t(t[2])]) <= h_ * h_)
+      const double h = h_[std::size_t(f)];
+      if (triangle_distance2(x, v_[std::size_t(t[0])], v_[std::size_t(t[1])], v_[std::size_t(t[2])]) <= h * h)
         return true;
     }
     return false;
@@ -152,7 +161,8 @@ class TriangleGrid {
   Cell key(const Vec3& x) const { return cell_of(x, cell_); }
   const std::vector<Vec3>& v_;
   const std::vector<std::array<int, 3>>& t_;
-  double cell_, h_;
+  double cell_;
+  std::vector<double> h_;  // per triangle
   std::unordered_map<Cell, std::vector<int>, CellHash> cells_;
 };
 
@@ -171,6 +181,9 @@ void check_params(const ConformParams& p) {
     throw UsageError("conforming_tets: " + std::to_string(p.rounds) + " rounds; expected 1 to 5");
   if (!(p.max_volume >= 0 && std::isfinite(p.max_volume)))
     throw UsageError("conforming_tets: max volume " + format_number(p.max_volume) + " world units^3; expected >= 0 (0: none)");
+  if (!(p.boundary_clearance >= 0 && p.boundary_clearance < 1))
+    throw UsageError("conforming_tets: boundary clearance " + format_number(p.boundary_clearance) +
+                     " (times a triangle's longest edge); expected 0 (keep every point) to below 1");
   if (p.smooth_sweeps < 0)
     throw UsageError("conforming_tets: " + std::to_string(p.smooth_sweeps) + " smoothing sweeps; expected >= 0");
   if (!(p.point_tolerance > 0 && p.point_tolerance < 0.1))
@@ -547,6 +560,10 @@ ConformResult conforming_tets(const Mesh& boundary, const std::vector<std::array
   for (const auto& t : b.triangles) mean_edge += norm(b.vertices[std::size_t(t[1])] - b.vertices[std::size_t(t[0])]);
   mean_edge /= double(b.triangles.size());
   const TriangleGrid near_triangle(b.vertices, b.triangles, std::max(mean_edge, 4 * tol), tol);
+  std::unique_ptr<TriangleGrid> too_close;
+  if (p.boundary_clearance > 0)
+    too_close = std::make_unique<TriangleGrid>(b.vertices, b.triangles, std::max(mean_edge, 4 * tol), tol,
+                                               p.boundary_clearance);
   std::vector<Vec3> candidates;
   for (std::size_t i = 0; i < interior.size(); ++i) {
     const Vec3& x = interior[i];
@@ -557,6 +574,10 @@ ConformResult conforming_tets(const Mesh& boundary, const std::vector<std::array
     }
     if (grid.near(x) || near_triangle.near(x)) {
       ++res.interior_near_point;
+      continue;
+    }
+    if (too_close && too_close->near(x)) {
+      ++res.interior_near_boundary;
       continue;
     }
     grid.add(x);
@@ -836,6 +857,7 @@ Json to_json(const ConformResult& r) {
             {"smooth_moves", r.smooth_moves},
             {"interior_outside", r.interior_outside},
             {"interior_near_point", r.interior_near_point},
+            {"interior_near_boundary", r.interior_near_boundary},
             {"interior_refused", r.interior_refused},
             {"self_intersection_untested", r.self_intersection_untested}}}};
 }

@@ -278,6 +278,42 @@ void SampleBins::build(const std::vector<Vec3>& x, double w, const std::vector<c
     if (colour[c] >= 0) colour_cells_[fill[colour[c]]++] = std::uint32_t(c);
 }
 
+void DenseBins::build(const std::vector<Vec3>& x, double w, std::size_t max_cells) {
+  const std::size_t n = x.size();
+  start_.clear();
+  order_.resize(n);
+  if (n == 0 || !(w > 0)) return;
+  Box bb;
+  for (const Vec3& p : x) bb.extend(p);
+  const Vec3 ext = bb.size();
+  max_cells = std::max<std::size_t>(max_cells, 1);
+  for (;;) {
+    std::size_t total = 1;
+    for (int a = 0; a < 3; ++a) {
+      n_[a] = long(std::floor(ext[a] / w)) + 1;
+      total *= std::size_t(n_[a]);
+    }
+    if (total <= max_cells) break;
+    w *= std::max(1.01, std::cbrt(double(total) / double(max_cells)));
+  }
+  w_ = w;
+  lo_ = bb.lo;
+  const std::size_t cells = std::size_t(n_[0]) * std::size_t(n_[1]) * std::size_t(n_[2]);
+  // Counting sort by cell: stable, so a cell lists its points by index.
+  start_.assign(cells + 1, 0u);
+  cell_of_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3& p = x[i];
+    const std::size_t c = std::size_t(clamp_cell(p.x, 0)) +
+                          std::size_t(n_[0]) * (std::size_t(clamp_cell(p.y, 1)) + std::size_t(n_[1]) * std::size_t(clamp_cell(p.z, 2)));
+    cell_of_[i] = std::uint32_t(c);
+    ++start_[c + 1];
+  }
+  for (std::size_t c = 0; c < cells; ++c) start_[c + 1] += start_[c];
+  next_.assign(start_.begin(), start_.end() - 1);
+  for (std::size_t i = 0; i < n; ++i) order_[next_[cell_of_[i]]++] = std::uint32_t(i);
+}
+
 std::int32_t SampleBins::find(std::uint64_t key) const {
   const std::size_t hmask = hash_.size() - 1;
   std::size_t h = mix64(key) & hmask;

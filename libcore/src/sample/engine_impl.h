@@ -145,31 +145,26 @@ double ParticleEngine<C>::energy_at(const Vec3& x, const Vec3& n, double a, std:
   return e;
 }
 
-// Candidates within `reach` of x from the 3x3x3 block of `cell`, excluding
-// self and particles self does not see. A neighbour bin is skipped when x
-// lies farther than reach + d_max from it along an axis (its particles were
-// binned inside it and moved at most d_max since).
+// Candidates within `reach` of x, excluding self and particles self does
+// not see: from the fine grid when it is in use and its search stays inside
+// the 3x3x3 block of bins (see build_fine), else from that block, where a
+// neighbour bin is skipped when x lies farther than reach + d_max from it
+// along an axis (its particles were binned inside it and moved at most d_max
+// since).
 template <class C>
 void ParticleEngine<C>::gather(const Vec3& x, double reach, std::size_t self, std::size_t cell,
                                std::vector<Cand>& out) const {
   out.clear();
   const double r2 = reach * reach;
-  const Particle& P0 = parts_[self];
-  if (fine_w_ > 0 && reach + cell_smax_[cell] <= fine_w_) {
-    std::int32_t fb[27];
-    if (fine_.block_of(x, fb)) {
-      const std::vector<std::uint32_t>& ord = fine_.order();
-      for (int k = 0; k < 27; ++k) {
-        if (fb[k] < 0) continue;
-        const std::size_t c = std::size_t(fb[k]);
-        for (std::uint32_t f = fine_.begin(c); f < fine_.end(c); ++f) {
-          const std::uint32_t q = ord[f];
-          if (norm2(pos_[q] - x) >= r2 || q == self) continue;
-          const Particle& o = parts_[q];
-          if (!sees(P0, o)) continue;
-          out.push_back(cand_of(P0, o));
-        }
-      }
+  if (fine_w_ > 0) {
+    const double need = reach + cell_moved_[cell];
+    if (need + fine_w_ < bins_.width()) {
+      const Particle& P0 = parts_[self];
+      fine_.visit_ball(x, need, [&](std::uint32_t q) {
+        if (q == self || norm2(pos_[q] - x) >= r2) return;
+        const Particle& o = parts_[q];
+        if (sees(P0, o)) out.push_back(cand_of(P0, o));
+      });
       return;
     }
   }
@@ -212,17 +207,19 @@ void ParticleEngine<C>::update(std::size_t i, std::size_t cell, std::vector<Cand
   // Trial positions lie within s_i of x_i and may not grow the local
   // spacing beyond kSpacingSlack s_i, which bounds their interaction radius.
   const double spacing_cap = varying() ? kSpacingSlack * P.spacing : P.spacing;
-  // Candidates for the current position and for trial positions within
-  // `margin` of it; a longer trial gathers again with the full step s_i.
+  // The first gather covers the current position and trial positions
+  // within `margin` of it whose spacing grew by at most kFirstGatherGrowth;
+  // a trial that needs more (its distance plus its own interaction radius)
+  // gathers again with the full reach, which covers every allowed trial.
   // Either way every particle within interaction range of the evaluated
-  // point is in `buf`, in the same order, so the sums are the same.
-  const double radius = radius_bound(spacing_cap);
+  // point is in `buf`.
   const double margin = kGatherMargin * P.spacing;
-  bool full_reach = false;
+  const double full_reach = radius_bound(spacing_cap) + P.spacing;
+  double reach = std::min(full_reach, radius_bound((varying() ? kFirstGatherGrowth : 1.0) * P.spacing) + margin);
   if (use_lists_)
-    gather_list(P.p.x, radius + margin, i, buf);
+    gather_list(P.p.x, reach, i, buf);
   else
-    gather(P.p.x, radius + margin, i, cell, buf);
+    gather(P.p.x, reach, i, cell, buf);
   Vec3 v;
   const double e0 = energy_at(P.p.x, P.p.n, P.attr, P.type, buf, &v, nullptr);
   P.energy = e0;
@@ -251,14 +248,15 @@ void ParticleEngine<C>::update(std::size_t i, std::size_t cell, std::vector<Cand
     double attr = 0;
     ok = ok && norm2(q.x - P.p.x) <= step_cap2 && attribute(q, attr) &&
          (!varying() || local_spacing(attr, P.type) <= spacing_cap);
+    if (ok && reach < full_reach &&
+        std::sqrt(norm2(q.x - P.p.x)) + radius_bound(local_spacing(attr, P.type)) > reach) {
+      reach = full_reach;
+      if (use_lists_)
+        gather_list(P.p.x, reach, i, buf);
+      else
+        gather(P.p.x, reach, i, cell, buf);
+    }
     if (ok) {
-      if (!full_reach && norm2(q.x - P.p.x) > margin * margin) {
-        if (use_lists_)
-          gather_list(P.p.x, radius + P.spacing, i, buf);
-        else
-          gather(P.p.x, radius + P.spacing, i, cell, buf);
-        full_reach = true;
-      }
       const double e1 = energy_at(q.x, q.n, attr, P.type, buf, nullptr, nullptr);
       if (e1 <= e0) {
         P.moved = std::sqrt(norm2(q.x - P.p.x)) / P.spacing;
@@ -332,43 +330,40 @@ void ParticleEngine<C>::rebin(bool for_lists) {
   if (p_.fine_bins && !for_lists) build_fine();
 }
 
-// The fine grid (EngineParams::fine_bins): a particle gathers from the 3x3x3
-// fine cells around it when its gather radius plus the largest spacing of
-// the free particles in its own bin fits in one fine cell. The grid is
-// rebuilt before every colour of a sweep, so the only candidates that can
-// have moved since are those of the particle's own bin (one move each, at
-// most its spacing); bins of one colour never interact. The fine width is a
-// low quantile of those needs, so the small particles of a graded packing
-// gather from a few fine cells instead of up to 27 wide bins. Which grid a
-// particle uses depends only on the state: runs stay deterministic for any
-// thread count.
+// The fine grid (EngineParams::fine_bins): a dense grid of cells about half
+// the median gather radius wide, rebuilt before every colour of a sweep, so
+// a graded packing's small particles scan a ball of their own radius instead
+// of 27 bins sized for the largest. Within a colour only the particles of
+// the gathering particle's own bin have moved since the rebuild (bins of one
+// colour never interact), at most cell_moved_[bin] each: the ball grows by
+// that much. The search stays within reach + moved + one fine cell of x
+// along every axis; below the bin width it never meets a bin of the same
+// colour (one bin away at least), whose particles may be moving. Which grid
+// a particle uses and the candidates' order depend only on the state: runs
+// stay deterministic for any thread count.
 constexpr double kFineQuantile = 0.5;
+constexpr double kFinePerRadius = 0.5;    // fine cell width / the median gather radius
+constexpr std::size_t kFineCellsPerParticle = 4;
 
 template <class C>
 void ParticleEngine<C>::build_fine() {
   using namespace engine_constants;
-  const std::size_t n = parts_.size(), nc = bins_.cells();
+  const std::size_t n = parts_.size();
   fine_w_ = 0;
-  cell_smax_.assign(nc, 0.0);
-  for (std::size_t c = 0; c < nc; ++c)
-    for (std::uint32_t q = bins_.begin(c); q < bins_.end(c); ++q)
-      if (!parts_[q].fixed) cell_smax_[c] = std::max(cell_smax_[c], parts_[q].spacing);
+  cell_moved_.assign(bins_.cells(), 0.0);
   std::vector<double> need;
   need.reserve(n);
-  for (std::size_t c = 0; c < nc; ++c)
-    for (std::uint32_t q = bins_.begin(c); q < bins_.end(c); ++q) {
-      const Particle& P = parts_[q];
-      if (P.fixed) continue;
-      const double cap = varying() ? kSpacingSlack * P.spacing : P.spacing;
-      need.push_back(radius_bound(cap) + kGatherMargin * P.spacing + cell_smax_[c]);
-    }
+  for (const Particle& P : parts_) {
+    if (P.fixed) continue;
+    const double cap = varying() ? kSpacingSlack * P.spacing : P.spacing;
+    need.push_back(radius_bound(cap) + kGatherMargin * P.spacing);
+  }
   if (need.empty()) return;
   const std::size_t at = std::size_t(double(need.size()) * kFineQuantile);
   std::nth_element(need.begin(), need.begin() + std::ptrdiff_t(at), need.end());
-  const double wf = need[at];
-  if (!(wf < 0.5 * bins_.width())) return;  // no gain over the bins
-  no_colour_.assign(n, 0);
-  fine_.build(pos_, wf, no_colour_);
+  const double wf = kFinePerRadius * need[at];
+  if (!(2 * wf < bins_.width())) return;  // no gain over the bins
+  fine_.build(pos_, wf, kFineCellsPerParticle * n + 4096);
   fine_w_ = fine_.width();
 }
 
@@ -465,6 +460,7 @@ double ParticleEngine<C>::sweep(double& energy) {
     EngineStats& ls = tls_stats_.local();
     for (std::uint32_t k = b; k != e; ++k) {
       const std::uint32_t c = bins_.colour_cell(k);
+      if (fine_w_ > 0) cell_moved_[c] = 0;  // the fine grid was rebuilt before this colour
       for (std::uint32_t i = bins_.begin(c); i < bins_.end(c); ++i) {
         Particle& P = parts_[i];
         if (P.fixed) continue;
@@ -474,7 +470,13 @@ double ParticleEngine<C>::sweep(double& energy) {
           P.moved = 0;
           continue;
         }
-        update(i, c, buf, ls);
+        if (fine_w_ > 0) {
+          const Vec3 before = pos_[i];
+          update(i, c, buf, ls);
+          cell_moved_[c] = std::max(cell_moved_[c], std::sqrt(norm2(pos_[i] - before)));
+        } else {
+          update(i, c, buf, ls);
+        }
       }
     }
   };
@@ -485,7 +487,7 @@ double ParticleEngine<C>::sweep(double& energy) {
   for (int colour = 0; colour < kColours; ++colour) {
     const std::uint32_t b = bins_.colour_begin(colour), e = bins_.colour_end(colour);
     if (b == e) continue;
-    if (fine_w_ > 0) fine_.build(pos_, fine_w_, no_colour_);  // positions after the previous colours
+    if (fine_w_ > 0) fine_.build(pos_, fine_w_, kFineCellsPerParticle * pos_.size() + 4096);  // after the previous colours
     if (serial) {
       run_cells(b, e);
       continue;

@@ -54,9 +54,15 @@ struct ConformParams {
   /// Interior points closer than this to a boundary triangle (TetGen would
   /// split the triangle) or to an earlier interior point are dropped
   /// (relative to the boundary's bounding-box diagonal; > 0). Points merely
-  /// close to the boundary stay and make poor tetrahedra there: keeping
-  /// them away is the point packing's job.
+  /// close to the boundary are boundary_clearance's.
   double point_tolerance = 1e-6;
+  /// Interior points closer to a boundary triangle than this times the
+  /// triangle's longest edge are dropped before meshing: TetGen keeps the
+  /// boundary (-Y), so such a point makes a flat tetrahedron on it that
+  /// neither refinement nor smoothing repairs (0 = keep them). At 0.2 the
+  /// face angle of a tetrahedron on an equilateral triangle with its apex that
+  /// high is above 34°.
+  double boundary_clearance = 0.2;
   /// Each meshing (TetGen's steps, then the smoothing below) is checked for
   /// tetrahedra with a dihedral angle below exude_below or above exude_above
   /// (degrees). When some are left, the interior points (not boundary
@@ -109,6 +115,7 @@ struct ConformResult {
   std::size_t smooth_moves = 0;     ///< vertex moves of the ODT smoothing
   std::size_t interior_outside = 0;     ///< label_at gave outside_label
   std::size_t interior_near_point = 0;  ///< within the tolerance of a boundary triangle or an earlier point
+  std::size_t interior_near_boundary = 0;  ///< closer to a boundary triangle than boundary_clearance
   std::size_t interior_refused = 0;     ///< not kept by TetGen (outside the surface, on a triangle)
   /// Materials whose surface is not a manifold polygon mesh (parts touching
   /// at a vertex), so that the self-intersection test could not run on them.

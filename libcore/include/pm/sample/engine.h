@@ -96,6 +96,7 @@ constexpr int kColours = 8;                  ///< bin colours (bx%2, by%2, bz%2)
 constexpr std::size_t kSerialBelow = 2000;   ///< sweeps of fewer particles run on one thread
 constexpr double kRetypeMargin = 0.02;      ///< quad packing: a particle changes type when that lowers its energy by more
 constexpr double kGatherMargin = 0.25;       ///< first gather covers trial moves up to 0.25 s_i
+constexpr double kFirstGatherGrowth = 1.1;   ///< ... whose local spacing grew by at most 10%
 constexpr double kListSkin = 0.5;            ///< neighbour lists: a particle may drift 0.5 s_i before a rebuild
 constexpr double kListsBelowMove = 0.25 * kListSkin;  ///< use lists once the largest move is below this (× s_i)
 constexpr double kHoleRadius = 1.5;          ///< an anchor without a particle within 1.5 s_i is a hole
@@ -321,6 +322,55 @@ class SampleBins {
   std::vector<std::uint32_t> hash_;
   std::vector<std::uint32_t> colour_start_, colour_cells_;
   std::uint64_t nx_ = 0, ny_ = 0, nz_ = 0;
+  Vec3 lo_;
+  double w_ = 1;
+};
+
+/// A dense grid of cubic cells over a point set's box, for gathers whose
+/// radius varies from point to point: the cells of one x row are adjacent in
+/// order(), so a ball is visited as one index range per row it crosses.
+class DenseBins {
+ public:
+  /// Cells of width >= w, widened until there are at most max_cells.
+  void build(const std::vector<Vec3>& x, double w, std::size_t max_cells);
+  double width() const { return w_; }
+  bool empty() const { return start_.empty(); }
+  /// Calls f(i) for every point i binned in a cell that meets the ball of
+  /// radius r around x: a superset of the points within r, in a fixed order
+  /// (rows by z then y, cells by x, points by index).
+  template <class F>
+  void visit_ball(const Vec3& x, double r, F&& f) const {
+    if (start_.empty()) return;
+    const double r2 = r * r;
+    const long iz0 = clamp_cell(x.z - r, 2), iz1 = clamp_cell(x.z + r, 2);
+    const long iy0 = clamp_cell(x.y - r, 1), iy1 = clamp_cell(x.y + r, 1);
+    for (long iz = iz0; iz <= iz1; ++iz) {
+      const double dz = axis_gap(x.z, iz, 2), rz = r2 - dz * dz;
+      if (rz < 0) continue;
+      for (long iy = iy0; iy <= iy1; ++iy) {
+        const double dy = axis_gap(x.y, iy, 1), ry = rz - dy * dy;
+        if (ry < 0) continue;
+        const double hw = std::sqrt(ry);
+        const long ix0 = clamp_cell(x.x - hw, 0), ix1 = clamp_cell(x.x + hw, 0);
+        const std::size_t row = std::size_t(n_[0]) * (std::size_t(iy) + std::size_t(n_[1]) * std::size_t(iz));
+        for (std::uint32_t k = start_[row + std::size_t(ix0)], e = start_[row + std::size_t(ix1) + 1]; k < e; ++k)
+          f(order_[k]);
+      }
+    }
+  }
+
+ private:
+  long clamp_cell(double v, int a) const {
+    const double t = std::floor((v - lo_[a]) / w_);
+    return t < 0 ? 0 : t >= double(n_[a] - 1) ? n_[a] - 1 : long(t);
+  }
+  // Distance from v to cell i's slab along axis a (0 inside).
+  double axis_gap(double v, long i, int a) const {
+    const double c0 = lo_[a] + double(i) * w_;
+    return v < c0 ? c0 - v : v > c0 + w_ ? v - c0 - w_ : 0.0;
+  }
+  std::vector<std::uint32_t> start_, order_, cell_of_, next_;
+  long n_[3] = {0, 0, 0};
   Vec3 lo_;
   double w_ = 1;
 };
@@ -551,12 +601,11 @@ class ParticleEngine {
   std::vector<char> active_;
   std::uint64_t next_id_ = 0, iteration_ = 0;
   SampleBins bins_;
-  // fine_bins: the finer grid (rebuilt before every colour), the largest
-  // spacing of the free particles in each bin (how far a candidate can have
-  // moved since), and the fine width (0 = not in use).
-  SampleBins fine_;
-  std::vector<double> cell_smax_;
-  std::vector<char> no_colour_;
+  // fine_bins: the finer grid (rebuilt before every colour), per bin the
+  // longest move of its particles since (how far a candidate can be from
+  // where the grid has it), and the fine width (0 = not in use).
+  DenseBins fine_;
+  std::vector<double> cell_moved_;
   double fine_w_ = 0;
 
   std::vector<std::uint32_t> nbr_start_, nbr_;
