@@ -194,6 +194,10 @@ expect_fail 2 "tetlabel: usage error: requirement \"frob\" is unknown" \
   "$TL" "$T/nope.ply" --conform "$T/nope2.ply" --implicit sphere --tets "$T/v.vtu" --require frob
 expect_fail 2 "tetlabel: usage error: --min-dihedral needs --conform" \
   "$TL" "$T/inner.ply" --implicit sphere -o "$T/s.ply" --min-dihedral 10
+expect_fail 2 "tetlabel: usage error: --boundary-clearance needs --conform" \
+  "$TL" "$T/inner.ply" --implicit sphere -o "$T/s.ply" --boundary-clearance 0.1
+expect_fail 2 "boundary-clearance: Value 1.5 not in range" \
+  "$TL" "$T/nope.ply" --conform "$T/nope2.ply" --implicit sphere --tets "$T/v.vtu" --boundary-clearance 1.5
 # Nothing half-written: no output and no temporary file from the failed runs.
 leftover=$(ls "$T" | grep -E '^(bad[0-9]|v\.|s\.ply)|\.tmp' || true)
 [ -z "$leftover" ] || { echo "tets_test: left behind: $leftover" >&2; exit 1; }

@@ -184,7 +184,7 @@ int main(int argc, char** argv) {
     if (tets_list.size() > 1) throw pm::UsageError("--tets once, unless with --conform");
     if (!tets_list.empty()) tets = tets_list[0];
     for (const char* o : {"--min-dihedral", "--radius-edge", "--max-dihedral", "--rounds", "--optimise", "--no-optimise",
-                          "--require"})
+                          "--require", "--max-volume", "--boundary-clearance", "--exude-rounds", "--smooth"})
       if (tool.app.count(o) > 0) throw pm::UsageError(std::string(o) + " needs --conform");
     if (out.empty()) throw pm::UsageError("--output is required (or --conform with --tets)");
     pm::check_output_path(out, pm::OutputKind::mesh, "--output");

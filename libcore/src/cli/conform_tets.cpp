@@ -61,6 +61,12 @@ void add_conform_options(CLI::App& app, ConformRun& r) {
       ->check(CLI::Range(1, 5));
   app.add_flag("--optimise,!--no-optimise", r.params.optimise,
                "With --conform: sliver removal (TetGen's flips and interior-vertex smoothing; default on)");
+  app.add_option("--boundary-clearance", r.params.boundary_clearance,
+                 "With --conform: interior points closer to a boundary triangle than this times the triangle's "
+                 "longest edge are dropped before meshing (they make flat tetrahedra on the fixed boundary); "
+                 "dimensionless, 0 = keep them")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 0.99));
   app.add_option("--exude-rounds", r.params.exude_rounds,
                  "With --conform: when tetrahedra outside [12, 160] degrees survive the smoothing, the interior "
                  "points of those TetGen left outside are removed and the volume meshed again, at most this many "
@@ -104,7 +110,11 @@ void run_conform(const ConformRun& r) {
                  {"radius_edge", r.params.radius_edge},
                  {"optimise", r.params.optimise},
                  {"max_dihedral", r.params.max_dihedral},
-                 {"optimise_level", r.params.optimise_level}};
+                 {"optimise_level", r.params.optimise_level},
+                 {"boundary_clearance", r.params.boundary_clearance},
+                 {"smooth_sweeps", r.params.smooth_sweeps},
+                 {"exude_rounds", r.params.exude_rounds},
+                 {"max_volume", r.params.max_volume}};
   if (multi) {
     st["inputs"] = {r.interior, r.surface, r.materials.spec};
     labels = interface_labels(surface, r.surface);
