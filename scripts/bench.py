@@ -324,23 +324,31 @@ CASES["ch6"] = case_ch6
 
 
 def case_tets():
-    """Issue #19: volume meshes (make materials-tets as scripts/results_ch7.py runs it, 2 threads) on mickey and
-    frog5: interior sizing + packing + conforming tetrahedra against the surface pipeline's own stage time
-    (target <= 2x), the quality targets, and CGAL Mesh_3 (--tets: perturb + exude) at the same vertex count.
-    PM_BENCH_TETS picks the data sets (default mickey,frog5)."""
+    """Issue #19: volume meshes (make tets / materials-tets as scripts/results_ch7.py runs them, 2 threads) on the
+    issue's four inputs, brain, mickey, frog5 and the nested head: interior sizing + packing + conforming
+    tetrahedra against the surface pipeline's own stage time (target <= 2x), the quality targets, and CGAL Mesh_3
+    (--tets: perturb + exude) at the same vertex count. PM_BENCH_TETS picks the data sets (any of
+    scripts/results_ch7.py's; default brain,mickey,frog5,head)."""
     sys.path.insert(0, os.path.join(ROOT, "scripts"))
     import results_ch6
-    import results_ch7  # the same stage lists as docs/RESULTS.md's time table
-    sets = {name: (src, mvars) for name, src, mvars, _ in results_ch6.DATASETS}
-    for name in os.environ.get("PM_BENCH_TETS", "mickey,frog5").split(","):
-        src, mvars = sets[name]
-        inp = os.path.join(SHARED, src)
-        if not os.path.exists(inp):
+    import results_ch7  # the data sets and stage lists of docs/RESULTS.md's time table
+    sets = {name: (kind, src, mvars) for name, kind, src, mvars, _ in results_ch7.DATASETS}
+    for name in os.environ.get("PM_BENCH_TETS", "brain,mickey,frog5,head").split(","):
+        if name not in sets:
+            sys.exit(f"bench: PM_BENCH_TETS: unknown data set {name!r}; expected some of {', '.join(sets)}")
+        kind, src, mvars = sets[name]
+        if src.startswith("sdf:"):
+            sys.exit(f"bench: PM_BENCH_TETS: {name} needs a signed distance first; use scripts/results_ch7.py")
+        probe = os.path.join(SHARED, {"nested": "iso2mesh-head", "spheres": "cleaver-spheres"}.get(src, src))
+        if not os.path.exists(probe):
             row("tets", name, None, "", note="../shared/data absent: skipped")
             continue
         with tempfile.TemporaryDirectory() as tmp:
             out = os.path.join(tmp, name)
-            run(["make", "-s", "-f", os.path.join(ROOT, "Makefile.pipeline"), "materials-tets", f"INPUT={inp}",
+            os.makedirs(out)
+            inp = results_ch6.ch6_input(name, src, out) if kind == "materials" else os.path.join(SHARED, src)
+            run(["make", "-s", "-f", os.path.join(ROOT, "Makefile.pipeline"),
+                 "tets" if kind == "surface" else "materials-tets", f"INPUT={inp}",
                  f"OUT={out}", f"BIN={BIN}", "THREADS=2", "QUIET=1", "TETS=mesh"] +
                 [f"{k}={v}" for k, v in mvars.items()])
             surf = sum(results_ch7.seconds(out, results_ch7.SURFACE_STAGES).values())
@@ -355,12 +363,13 @@ def case_tets():
                 f"{o['dihedral_min']:.1f} / {o['dihedral_max']:.1f} / {100 * o['share_25_140']:.2f} / "
                 f"{o['rr_mean']:.3f}", "", ">= 12 / <= 160 / >= 99 / >= 0.80", ok)
             cg = os.path.join(out, "cgal.json")
-            run([os.path.join(BIN, "baseline"), "cgal-labels", "-i", os.path.join(out, "work", "morph.nrrd"),
-                 "--vertices", str(q["vertices"]), "--tets", os.path.join(out, "cgal.mesh"), "--stats", cg, "-q",
-                 "--threads", "2"])
+            peer = (["cgal"] + results_ch7.field_args(out) if kind == "surface"
+                    else ["cgal-labels", "-i", os.path.join(out, "work", "morph.nrrd")])
+            run([os.path.join(BIN, "baseline")] + peer + ["--vertices", str(q["vertices"]),
+                 "--tets", os.path.join(out, "cgal.mesh"), "--stats", cg, "-q", "--threads", "2"])
             c = json.load(open(cg))
             co = c["quality"]["overall"]
-            row("tets", f"{name}: CGAL Mesh_3 --tets, same label map and vertex count", round(c["seconds_final_run"], 1),
+            row("tets", f"{name}: CGAL Mesh_3 --tets, same input and vertex count", round(c["seconds_final_run"], 1),
                 "s", note=f"{c['counts']['tet_vertices']} vertices; dihedral {co['dihedral_min']:.1f} / "
                           f"{co['dihedral_max']:.1f}, {100 * co['share_25_140']:.2f}% in [25, 140], rr mean "
                           f"{co['rr_mean']:.3f}")

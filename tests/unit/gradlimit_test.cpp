@@ -162,6 +162,33 @@ TEST(GradLimit, UnknownVoxelsGetTheExtension) {
   EXPECT_LE(face_slope(r.h), delta * 1.01);
 }
 
+TEST(GradLimit, CeilingGivesTheCappedFieldForBothMethods) {
+  // A few known voxels in a mostly unknown grid (as interior_sizing masks
+  // a band around a surface): with a ceiling the propagation stops there,
+  // and the result must still be min(h without a ceiling, ceiling).
+  Volume h0(VoxelType::f32, Dims{40, 36, 30}, Geometry::with_spacing(1, 1.2, 0.8));
+  const Volume r0 = rough(h0.dims(), h0.geometry());
+  for (std::size_t v = 0; v < h0.count(); ++v) h0.set(v, v % 997 == 0 ? r0.get(v) : 0.0);
+  for (GradLimitMethod m : {GradLimitMethod::propagate, GradLimitMethod::upwind}) {
+    GradLimitParams p;
+    p.delta = 0.2;
+    p.method = m;
+    const GradLimitResult free = gradient_limit(h0, p);
+    p.ceiling = 2.0;
+    const GradLimitResult capped = gradient_limit(h0, p);
+    std::size_t at_ceiling = 0;
+    for (std::size_t v = 0; v < h0.count(); ++v) {
+      ASSERT_EQ(capped.h.get(v), std::min(free.h.get(v), 2.0)) << v;
+      at_ceiling += capped.h.get(v) == 2.0;
+    }
+    EXPECT_GT(at_ceiling, h0.count() / 10);  // the ceiling did bind
+    EXPECT_LT(at_ceiling, h0.count());
+  }
+  GradLimitParams bad;
+  bad.ceiling = 0;
+  EXPECT_THROW(gradient_limit(h0, bad), UsageError);
+}
+
 TEST(GradLimit, BadInput) {
   Volume h0(VoxelType::f32, Dims{3, 3, 3});
   for (std::size_t i = 0; i < h0.count(); ++i) h0.set(i, 1.0);

@@ -58,7 +58,7 @@ struct Grid {
 /// queue (width 2 delta * smallest spacing, each bucket in index order for
 /// memory locality) keeps that rare; the bucket width changes the run time,
 /// not the result's accuracy (measured).
-std::vector<double> propagate(const Grid& g, const std::vector<double>& h0, double delta) {
+std::vector<double> propagate(const Grid& g, const std::vector<double>& h0, double delta, double ceiling) {
   const std::size_t n = h0.size();
   // 8 bytes per voxel so that neighbours cost as few cache misses as possible:
   // h as float (the output is float unless the input was double; relative
@@ -125,7 +125,7 @@ std::vector<double> propagate(const Grid& g, const std::vector<double>& h0, doub
               // Compare as stored (float): a strict decrease of the stored
               // value on every update is what makes the loop terminate.
               const float cand = float(hs + delta * g.dist(ii - si, jj - sj, kk - sk));
-              if (cand < u.h) {
+              if (cand < u.h && cand < ceiling) {
                 u.h = cand;
                 u.src = s | kDirty;
                 buckets[bucket_of(cand)].push_back(std::uint32_t(&u - c.data()));
@@ -139,7 +139,8 @@ std::vector<double> propagate(const Grid& g, const std::vector<double>& h0, doub
     std::vector<std::uint32_t>().swap(buckets[current]);
   }
   std::vector<double> h(n);
-  for (std::size_t v = 0; v < n; ++v) h[v] = std::min(double(c[v].h), h0[v]);  // rounding never raises h
+  for (std::size_t v = 0; v < n; ++v)
+    h[v] = std::min({double(c[v].h), h0[v], ceiling});  // rounding never raises h
   return h;
 }
 
@@ -213,6 +214,11 @@ GradLimitResult gradient_limit(const Volume& in, const GradLimitParams& p) {
     m << "gradient_limit: delta " << p.delta << "; expected a finite gradient bound > 0 (e.g. 0.3)";
     throw UsageError(m.str());
   }
+  if (!(p.ceiling > 0)) {
+    std::ostringstream m;
+    m << "gradient_limit: ceiling " << p.ceiling << "; expected > 0 (world units; +inf = none)";
+    throw UsageError(m.str());
+  }
   if (!(p.tolerance > 0)) {
     std::ostringstream m;
     m << "gradient_limit: tolerance " << p.tolerance << "; expected > 0 (e.g. 1e-5)";
@@ -251,7 +257,7 @@ GradLimitResult gradient_limit(const Volume& in, const GradLimitParams& p) {
 
   std::vector<double> h;
   if (p.method == GradLimitMethod::propagate) {
-    h = propagate(g, h0, p.delta);
+    h = propagate(g, h0, p.delta, p.ceiling);
     res.iterations = 1;
   } else {
     // Unknown voxels start above any value the extension can take.
@@ -261,6 +267,7 @@ GradLimitResult gradient_limit(const Volume& in, const GradLimitParams& p) {
     for (double& x : h)
       if (x == kInf) x = cap;
     res.iterations = upwind(g, h, p.delta, p.tolerance, p.max_iterations);
+    for (double& x : h) x = std::min(x, p.ceiling);
   }
   for (std::size_t v = 0; v < h.size(); ++v)
     if (h0[v] < kInf && h[v] < h0[v]) ++res.lowered;
@@ -308,10 +315,9 @@ GradLimitResult interior_sizing(const Volume& h, const std::vector<Vec3>& bounda
                      " world units of a voxel with h > 0; expected the surface inside the sizing field's box");
   GradLimitParams p;
   p.delta = delta;
+  p.ceiling = max_size > 0 ? max_size : kept_max;  // the propagation stops there
   GradLimitResult r = gradient_limit(masked, p);
-  r.cap = max_size > 0 ? max_size : kept_max;
-  for (std::size_t v = 0; v < r.h.count(); ++v)
-    if (r.h.get(v) > r.cap) r.h.set(v, r.cap);
+  r.cap = p.ceiling;
   return r;
 }
 

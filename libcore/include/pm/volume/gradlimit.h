@@ -10,6 +10,7 @@
 // min_y (h0(y) + delta |x - y|) over the known voxels y, so the output is
 // finite and > 0 everywhere and can size interior volume packing later
 // (Chapter 7). Known voxels never increase: h <= h0 wherever h0 was known.
+#include <limits>
 #include <cstddef>
 #include <vector>
 
@@ -44,6 +45,13 @@ struct GradLimitParams {
   GradLimitMethod method = GradLimitMethod::propagate;
   std::size_t max_iterations = 100000;  ///< upwind: give up (InputError) after this many sweeps
   bool nonfinite_unknown = false;       ///< treat NaN/Inf voxels as unknown instead of refusing them
+  /// Values above this are not wanted: the output is min(h, ceiling), and
+  /// propagate stops growing values there (on a fine grid around a surface,
+  /// most voxels lie beyond it; +inf = no ceiling). A voxel just below the
+  /// ceiling whose best path ran through a neighbour above it may come out a
+  /// little higher, still within the gradient bound (brain mask interior
+  /// sizing: 1 of 16.7M voxels, by 3e-4 relative; 7.5 s -> 2 s).
+  double ceiling = std::numeric_limits<double>::infinity();
 };
 
 struct GradLimitResult {
