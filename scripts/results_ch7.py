@@ -12,9 +12,11 @@ from the tools' JSON.
   scripts/results_ch7.py --reuse                  # keep finished pipeline runs in the work folder
 """
 import argparse
+import datetime
 import json
 import os
 import shutil
+import subprocess
 import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -61,6 +63,18 @@ def log(msg):
 # One way to run a tool and read its JSON, shared with Chapter 6's script.
 run = results_ch6.run
 load = results_ch6.load
+
+
+def run_label(args):
+    """Today's date and the commit the tools were built from (--commit, else this checkout's HEAD)."""
+    commit = args.commit
+    if not commit:
+        try:
+            commit = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"], capture_output=True,
+                                    text=True, check=True).stdout.strip()
+        except (OSError, subprocess.CalledProcessError):
+            commit = "?"
+    return f"{datetime.date.today().isoformat()} ({commit})"
 
 
 def seconds(out, stages):
@@ -176,7 +190,7 @@ def dataset(args, name, kind, src, mvars, desc, img):
                       "dihedral_max": s["quality"]["overall"]["dihedral_max"],
                       "share_25_140": s["quality"]["share_25_140"], "rr_mean": s["quality"]["overall"]["rr_mean"]}
                      for s in tl["steps"]],
-           "interior_points": tl["counts"]["interior_kept"]}
+           "interior_points": tl["counts"]["interior_kept"], "run": run_label(args)}
     shutil.copyfile(os.path.join(out, "volume.png"), os.path.join(img, f"ch7_{name}_ours.png"))
     n = q["vertices"]
     # CGAL Mesh_3 on the same input at our vertex count.
@@ -277,12 +291,12 @@ def write(docs, rows, failures):
           "CGAL's is its final Mesh_3 run (refinement, perturbation, exudation) without the runs of the "
           "facet-size search; TetGen alone is its final run. The issue's time target compares our volume "
           "stages with our own surface pipeline on the same input:", "",
-          "| data | surface pipeline (s) | volume stages (s) | ratio (target <= 2) | interior particles |",
-          "|---|---|---|---|---|"]
+          "| data | surface pipeline (s) | volume stages (s) | ratio (target <= 2) | interior particles | run (code) |",
+          "|---|---|---|---|---|---|"]
     for r in rows:
         ratio = r["volume_seconds"] / r["surface_seconds"] if r["surface_seconds"] else float("nan")
         L.append(f"| {r['name']} | {r['surface_seconds']} | {r['volume_seconds']} | {ratio:.2f} | "
-                 f"{r['interior_points']} |")
+                 f"{r['interior_points']} | {r.get('run', 'before 2026-12-02')} |")
     L += ["", "Each step of the volume meshing, measured (ours, then CGAL's):", ""]
     for r in rows:
         L.append(f"* **{r['name']}** ({r['description']}): " + "; ".join(
@@ -313,6 +327,7 @@ def main():
     ap.add_argument("--datasets", default="", help="comma-separated names (default: all found)")
     ap.add_argument("--work", default=os.path.join(ROOT, "out", "results-ch7"))
     ap.add_argument("--reuse", action="store_true", help="keep finished pipeline runs in --work")
+    ap.add_argument("--commit", default="", help="the commit the tools in --bin were built from (default: HEAD)")
     ap.add_argument("--markdown-only", action="store_true", help="rewrite ch7.md from ch7.json, run nothing")
     args = ap.parse_args()
     args.bin = os.path.abspath(args.bin)
