@@ -360,6 +360,32 @@ TEST(TetConform, InteriorPointsOfSliversAreRemovedAndMeshedAgain) {
   EXPECT_EQ(r.mesh.triangles, s.faces);  // the boundary is untouched
 }
 
+TEST(TetConform, BadTetrahedraGiveUpTheirInteriorPointsOrTheirNeighbours) {
+  // Vertices 0-3: boundary, 4-6: interior points [4, 7), 7: a Steiner point.
+  // Tet A = (0,1,2,3) is flat (3 lies almost in the plane of 0,1,2) and has
+  // no interior vertex; tet B = (0,1,2,4) shares its face and holds point 4;
+  // tet C = (5,6,7,4) is regular and far from A but touches B at 4.
+  LabelledTets m;
+  m.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0.3, 0.3, 0.01}, {0.3, 0.3, -0.8},
+                {5, 5, 5}, {6, 5, 5}, {5, 6, 5}};
+  m.vertices.push_back({5.33, 5.33, 5.8});  // 8: makes C regular-ish with 5, 6, 7
+  m.tets = {{0, 1, 2, 3}, {0, 2, 1, 4}, {5, 6, 7, 8}};
+  m.materials = {1, 1, 1};
+  std::vector<std::size_t> rm;
+  // A alone is outside [12, 160]: no interior vertex of its own, so the points of the tetrahedra at its
+  // vertices go (4, from B); C's are kept.
+  EXPECT_EQ(tets_outside_band(m, 4, 7, 12, 160, &rm), 1u);
+  EXPECT_EQ(rm, (std::vector<std::size_t>{4}));
+  EXPECT_EQ(tets_outside_band(m, 4, 7, 12, 160), 1u);
+  // A bad tetrahedron with an interior vertex gives up only its own: flatten C by moving 8 into the plane.
+  m.vertices[8] = {5.33, 5.33, 5.01};
+  m.tets[2] = {5, 6, 7, 8};
+  EXPECT_EQ(tets_outside_band(m, 4, 9, 12, 160, &rm), 2u);
+  EXPECT_EQ(rm, (std::vector<std::size_t>{4, 5, 6, 7, 8}));  // A's ring (4) and C's own (5-8, all in [4, 9))
+  EXPECT_EQ(tets_outside_band(m, 0, 0, 0, 180, &rm), 0u);
+  EXPECT_TRUE(rm.empty());
+}
+
 TEST(TetConform, PointsTooCloseToTheBoundaryAreDroppedBeforeMeshing) {
   // The same point 1e-3 above a triangle (edges ~0.3) and one 0.05 above
   // another: both within 0.2 of the longest edge, so both go before the

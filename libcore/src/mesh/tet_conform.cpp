@@ -760,36 +760,13 @@ ConformResult conforming_tets(const Mesh& boundary, const std::vector<std::array
     // The interior points of the tetrahedra outside the band as TetGen left
     // them are the ones to remove (the smoothing may have repaired their
     // tetrahedra and left the cause, a point too close to the boundary).
-    // A bad tetrahedron without interior vertices (boundary vertices and
-    // Steiner points only) gives up the interior points of the tetrahedra
-    // around its vertices instead: the next meshing then differs there.
     auto outside_band = [&](const LabelledTets& m, std::set<std::array<double, 3>>* points) {
-      std::size_t n = 0;
-      auto interior = [&](int k) { return std::size_t(k) >= nb && std::size_t(k) < nb + kept; };
-      auto take = [&](const std::array<int, 4>& t) {
-        for (int k : t)
-          if (interior(k)) {
-            const Vec3& x = m.vertices[std::size_t(k)];
-            points->insert({x.x, x.y, x.z});
-          }
-      };
-      std::vector<char> ring;  // vertices of bad tetrahedra without interior vertices
-      for (const auto& t : m.tets) {
-        const DihedralRange d = tet_dihedral_range(m.vertices[std::size_t(t[0])], m.vertices[std::size_t(t[1])],
-                                                   m.vertices[std::size_t(t[2])], m.vertices[std::size_t(t[3])]);
-        if (d.min >= p.exude_below && d.max <= p.exude_above) continue;
-        ++n;
-        if (!points) continue;
-        if (std::any_of(t.begin(), t.end(), interior)) {
-          take(t);
-        } else {
-          ring.resize(m.vertices.size(), 0);
-          for (int k : t) ring[std::size_t(k)] = 1;
-        }
+      std::vector<std::size_t> idx;
+      const std::size_t n = tets_outside_band(m, nb, nb + kept, p.exude_below, p.exude_above, points ? &idx : nullptr);
+      for (std::size_t k : idx) {
+        const Vec3& x = m.vertices[k];
+        points->insert({x.x, x.y, x.z});
       }
-      if (points && !ring.empty())
-        for (const auto& t : m.tets)
-          if (std::any_of(t.begin(), t.end(), [&](int k) { return ring[std::size_t(k)] != 0; })) take(t);
       return n;
     };
     std::set<std::array<double, 3>> bad;
@@ -838,6 +815,39 @@ ConformResult conforming_tets(const Mesh& boundary, const std::vector<std::array
                              ? candidates.size() - res.interior_exuded - res.interior_kept
                              : 0;
   return res;
+}
+
+std::size_t tets_outside_band(const LabelledTets& m, std::size_t first, std::size_t last, double below, double above,
+                              std::vector<std::size_t>* remove) {
+  auto movable = [&](int k) { return std::size_t(k) >= first && std::size_t(k) < last; };
+  std::vector<char> take(remove ? m.vertices.size() : 0, 0), ring;
+  auto take_tet = [&](const std::array<int, 4>& t) {
+    for (int k : t)
+      if (movable(k)) take[std::size_t(k)] = 1;
+  };
+  std::size_t n = 0;
+  for (const auto& t : m.tets) {
+    const DihedralRange d = tet_dihedral_range(m.vertices[std::size_t(t[0])], m.vertices[std::size_t(t[1])],
+                                               m.vertices[std::size_t(t[2])], m.vertices[std::size_t(t[3])]);
+    if (d.min >= below && d.max <= above) continue;
+    ++n;
+    if (!remove) continue;
+    if (std::any_of(t.begin(), t.end(), movable)) {
+      take_tet(t);
+    } else {
+      ring.resize(m.vertices.size(), 0);
+      for (int k : t) ring[std::size_t(k)] = 1;
+    }
+  }
+  if (remove) {
+    if (!ring.empty())
+      for (const auto& t : m.tets)
+        if (std::any_of(t.begin(), t.end(), [&](int k) { return ring[std::size_t(k)] != 0; })) take_tet(t);
+    remove->clear();
+    for (std::size_t k = 0; k < take.size(); ++k)
+      if (take[k]) remove->push_back(k);
+  }
+  return n;
 }
 
 Json to_json(const std::vector<ConformStep>& steps_in) {

@@ -145,6 +145,15 @@ ConformResult conforming_tets(const Mesh& boundary, const std::vector<std::array
 /// Counts, and per step seconds, vertices, tetrahedra and pm::to_json(TetQuality)
 /// (plus share_25_140), for --stats.
 Json to_json(const ConformResult& r);
+
+/// The tetrahedra of m with a dihedral angle outside [below, above]
+/// degrees: their count, and in `remove` (sorted, when given) the vertices
+/// in [first, last) (the interior points) that the next meshing should do
+/// without: those of the bad tetrahedra, and for a bad tetrahedron with none
+/// (boundary vertices and Steiner points only) those of every tetrahedron
+/// around its vertices, so that the next meshing differs there.
+std::size_t tets_outside_band(const LabelledTets& m, std::size_t first, std::size_t last, double below, double above,
+                              std::vector<std::size_t>* remove = nullptr);
 /// The steps alone: name, seconds, vertices, tetrahedra, Steiner points, quality.
 Json to_json(const std::vector<ConformStep>& steps);
 
