@@ -18,6 +18,16 @@ done
 if "$BIN/quadmesh" "$T/tri.ply" -o "$T/x.ply" -q 2> "$T/err"; then echo "no-type surface accepted"; exit 1; fi
 grep -q "tri.ply.*no vertex property .type." "$T/err"
 test ! -e "$T/x.ply"
+# meshstats reads the polygon meshes back with their quads (and measures their fan triangulation against the
+# sphere); its quad figures must equal quadmesh's own.
+for ext in ply obj off; do
+  "$BIN/meshstats" "$T/quads.$ext" --implicit sphere:r=1 --iso 0 -o "$T/ms_$ext.json" -q --require "watertight,quad_share>=0.5"
+done
+rc=0; "$BIN/meshstats" "$T/quads.ply" -q --require "quad_share>=0.999" 2> "$T/err" || rc=$?
+[ "$rc" = 3 ] || { echo "quad_share>=0.999 should fail with exit 3, got $rc"; cat "$T/err"; exit 1; }
+rc=0; "$BIN/meshstats" "$T/tri.ply" -q --require "quad_share>=0.5" 2> "$T/err" || rc=$?
+[ "$rc" = 2 ] || { echo "quad_share on a triangle mesh should be a usage error, got $rc"; exit 1; }
+grep -q "needs a polygon mesh with quads" "$T/err"
 $PY - "$T" <<'PY'
 import json, sys
 import numpy as np
@@ -67,5 +77,15 @@ for ext in ("ply", "obj", "off"):
     # Points on the unit sphere, in double precision from our writer (|r| - 1 is the packing's own 1e-6).
     r = np.linalg.norm(points, axis=1)
     assert np.abs(r - 1).max() < 1e-4, (ext, np.abs(r - 1).max())
+for ext in ("ply", "obj", "off"):
+    ms = json.load(open(f"{T}/ms_{ext}.json"))
+    pq = ms["polygons"]
+    for k in ("quads", "triangles", "corner_share_70_110", "valence4_share", "corner_min", "corner_max"):
+        assert abs(pq[k] - q[k]) <= 1e-9 * max(1.0, abs(q[k])), (ext, k, pq[k], q[k])
+    assert ms["topology"]["boundary_edges"] == 0, ext
+    # Vertices on the unit sphere: the fan triangles' centroids lie inside it by at most the sagitta of a
+    # quad's diagonal (spacing 0.12, diagonal ~0.17 -> (0.17/2)^2 / 2 = 0.0036).
+    assert ms["distance_to_surface"]["centroid_max"] < 0.01, (ext, ms["distance_to_surface"])
+    assert ms["distance_to_surface"]["vertex_max"] < 1e-4, (ext, ms["distance_to_surface"])
 print("ok")
 PY

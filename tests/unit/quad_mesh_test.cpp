@@ -6,9 +6,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <fstream>
 #include <map>
 
 #include "pm/base/error.h"
+#include "pm/io/poly_mesh.h"
 
 namespace pm {
 namespace {
@@ -116,6 +119,42 @@ TEST(QuadMesh, BadInputIsRefused) {
   bad.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
   bad.faces = {{0, 1, 1, -1}};
   EXPECT_THROW(quad_quality(bad), InputError);
+}
+
+TEST(QuadMesh, PolygonFilesReadBackWithTheirQuads) {
+  std::vector<int> type;
+  const QuadResult r = quad_dominant(checker_cube(2, type), type);
+  ASSERT_GT(r.mesh.quad_count(), 0u);
+  PolyMesh mixed = r.mesh;  // one quad split into two triangles: a mixed mesh
+  const auto q = mixed.faces[0];
+  mixed.faces[0] = {q[0], q[1], q[2], -1};
+  mixed.faces.push_back({q[0], q[2], q[3], -1});
+  const std::string dir = ::testing::TempDir();
+  for (const char* ext : {".ply", ".obj", ".off"}) {
+    for (bool binary : {true, false}) {
+      SCOPED_TRACE(std::string(ext) + (binary ? " binary" : " ascii"));
+      const std::string path = dir + "/pm_quads" + ext;
+      write_poly_mesh(mixed, path, WorldFrame::lps, binary);
+      const PolyMesh back = read_poly_mesh(path);
+      ASSERT_EQ(back.faces, mixed.faces);
+      ASSERT_EQ(back.vertices.size(), mixed.vertices.size());
+      for (std::size_t i = 0; i < back.vertices.size(); ++i) EXPECT_EQ(norm(back.vertices[i] - mixed.vertices[i]), 0.0);
+      std::remove(path.c_str());
+    }
+  }
+  // A pentagon is neither: refused, naming the file and the polygon.
+  const std::string off = dir + "/pm_pentagon.off";
+  std::ofstream(off) << "OFF\n5 1 0\n0 0 0\n1 0 0\n1.3 1 0\n0.5 1.6 0\n-0.3 1 0\n5 0 1 2 3 4\n";
+  try {
+    read_poly_mesh(off);
+    ADD_FAILURE() << "pentagon accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("pm_pentagon.off\": polygon 0 has 5 vertices; expected triangles and quads"),
+              std::string::npos)
+        << e.what();
+  }
+  std::remove(off.c_str());
+  EXPECT_THROW(read_poly_mesh(dir + "/pm_quads.stl"), UsageError);
 }
 
 }  // namespace

@@ -18,6 +18,8 @@
 #include "pm/mesh/meshstats_materials.h"
 #include "pm/mesh/tet_quality.h"
 #include "pm/io/output_path.h"
+#include "pm/io/poly_mesh.h"
+#include "pm/mesh/quad_mesh.h"
 
 namespace {
 void print_table(const pm::MeshQuality& q) {
@@ -185,6 +187,16 @@ int main(int argc, char** argv) {
       q = pm::mesh_quality(m, p);
     }
     pm::Json j = pm::to_json(q);
+    // A polygon mesh (quadmesh's output): the quad figures too, from the file with its quads kept; the
+    // figures above are of its fan triangulation (topology, distance to the isosurface, intersections).
+    std::unique_ptr<pm::QuadQuality> quads;
+    if (pm::is_poly_mesh_path(mesh_path)) {
+      const pm::PolyMesh pmesh = pm::read_poly_mesh(mesh_path);
+      if (pmesh.quad_count() > 0) {
+        quads = std::make_unique<pm::QuadQuality>(pm::quad_quality(pmesh));
+        j["polygons"] = pm::to_json(*quads);
+      }
+    }
     std::string missing;
     if (!seeds_path.empty()) {
       const pm::Mesh seeds = pm::read_mesh(seeds_path);
@@ -216,13 +228,20 @@ int main(int argc, char** argv) {
     }
     st["quality"] = j;
     print_table(q);
+    if (quads && pm::verbosity() != pm::Verbosity::quiet)
+      std::fprintf(stderr,
+                   "  polygons: %zu quads, %zu triangles (%.2f%% quads), corners %.1f..%.1f deg, %.2f%% in 90 +- 20, "
+                   "valence 4 %.2f%% (%zu irregular), scaled Jacobian min %.3f mean %.3f\n",
+                   quads->quads, quads->triangles, 100 * quads->quad_share(), quads->corner_min, quads->corner_max,
+                   100 * quads->corner_share_70_110(), 100 * quads->valence4_share(), quads->irregular,
+                   quads->jacobian_min, quads->jacobian_mean);
     write_report(j);
     if (!missing.empty())
       throw pm::InputError(pm::quote(mesh_path) + ": the mesh misses components of the isosurface found by the "
                            "marching-cubes seeds " + pm::quote(seeds_path) + ": " + missing +
                            "; expected particles on every component (seed the particles with these seeds)");
     if (!require.empty()) {
-      const auto failed = pm::check_requirements(q, require);
+      const auto failed = pm::check_requirements(q, require, quads.get());
       if (!failed.empty()) {
         std::string msg = pm::quote(mesh_path) + ": " + std::to_string(failed.size()) + " requirement(s) not met:";
         for (const auto& f : failed) msg += " " + f;

@@ -1,5 +1,4 @@
 // Gmsh MSH 4.1 ASCII writer and MSH 4.1 / 2.2 reader (see pm/io/gmsh.h).
-#include "pm/io/number_text.h"
 #include "pm/io/gmsh.h"
 
 #include <algorithm>
@@ -12,6 +11,7 @@
 #include <vector>
 
 #include "pm/base/error.h"
+#include "pm/io/number_text.h"
 #include "scan.h"
 
 namespace pm {

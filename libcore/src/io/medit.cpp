@@ -1,5 +1,4 @@
 // MEDIT .mesh reader and writers (see pm/io/medit.h).
-#include "pm/io/number_text.h"
 #include "pm/io/medit.h"
 
 #include <algorithm>
@@ -15,6 +14,7 @@
 
 #include "pm/base/atomic_file.h"
 #include "pm/base/error.h"
+#include "pm/io/number_text.h"
 
 namespace pm {
 namespace {

@@ -25,6 +25,7 @@ struct MeshFormat {
   Writer write;
 };
 
+Mesh read_ply_plain(const std::string& p, WorldFrame* f) { return read_ply(p, f); }
 // Geometry-only readers state no frame: their coordinates are taken as LPS.
 Mesh read_off_lps(const std::string& p, WorldFrame*) { return read_off(p); }
 Mesh read_obj_lps(const std::string& p, WorldFrame*) { return read_obj(p); }
@@ -32,7 +33,7 @@ Mesh read_stl_lps(const std::string& p, WorldFrame*) { return read_stl(p); }
 
 const std::vector<MeshFormat>& formats() {
   static const std::vector<MeshFormat> kFormats = {
-      {".ply", true, true, read_ply,
+      {".ply", true, true, read_ply_plain,
        [](const Mesh& m, const std::string& t, const MeshWriteParams& p) { write_ply(m, t, p.binary, p.frame); }},
       {".vtp", true, true, nullptr,
        [](const Mesh& m, const std::string& t, const MeshWriteParams& p) { write_vtp(m, t, p.frame); }},

@@ -300,7 +300,7 @@ class OffCheck {
 
 }  // namespace
 
-Mesh read_off(const std::string& path) {
+Mesh read_off(const std::string& path, std::vector<int>* polygon_sizes) {
   OffCheck(path).run();
   std::ifstream in(path, std::ios::binary);
   if (!in) throw IoError("read_off: " + quote(path) + ": cannot open");
@@ -310,7 +310,7 @@ Mesh read_off(const std::string& path) {
     throw InputError("read_off: " + quote(path) +
                      ": malformed OFF (bad header, truncated data, bad number or vertex index out of range); "
                      "expected \"OFF\", the counts \"V F E\", V vertices and F faces");
-  return mesh_from_polygons(to_vec3(pts), polys, "read_off", path);
+  return mesh_from_polygons(to_vec3(pts), polys, "read_off", path, polygon_sizes);
 }
 
 void write_off(const Mesh& m, const std::string& path) {
@@ -324,7 +324,7 @@ void write_off(const Mesh& m, const std::string& path) {
   if (!os) throw IoError("write_off: " + quote(path) + ": write failed (disk full?)");
 }
 
-Mesh read_obj(const std::string& path) {
+Mesh read_obj(const std::string& path, std::vector<int>* polygon_sizes) {
   std::ifstream in(path);
   if (!in) throw IoError("read_obj: " + quote(path) + ": cannot open");
   std::vector<Point> pts;
@@ -333,7 +333,7 @@ Mesh read_obj(const std::string& path) {
     throw InputError("read_obj: " + quote(path) +
                      ": malformed OBJ (unknown record, bad number, face index out of range, or no vertices or "
                      "faces); expected \"v x y z\" and \"f i j k ...\" records");
-  return mesh_from_polygons(to_vec3(pts), polys, "read_obj", path);
+  return mesh_from_polygons(to_vec3(pts), polys, "read_obj", path, polygon_sizes);
 }
 
 void write_obj(const Mesh& m, const std::string& path, WorldFrame frame) {

@@ -1,5 +1,4 @@
 // PLY reader and writer (see pm/io/ply.h).
-#include "pm/io/number_text.h"
 #include "pm/io/ply.h"
 
 #include <algorithm>
@@ -16,6 +15,7 @@
 
 #include "pm/base/atomic_file.h"
 #include "pm/base/error.h"
+#include "pm/io/number_text.h"
 
 namespace pm {
 
@@ -310,7 +310,7 @@ void check_ply_names(const Mesh& m, const std::string& where) {
 }
 
 
-Mesh read_ply(const std::string& path, WorldFrame* frame) {
+Mesh read_ply(const std::string& path, WorldFrame* frame, std::vector<int>* polygon_sizes) {
   const std::string where = "read_ply: " + quote(path);
   const std::string data = read_file_bytes(path, "read_ply");
   const PlyHeader h = parse_header(data, path);
@@ -417,6 +417,7 @@ Mesh read_ply(const std::string& path, WorldFrame* frame) {
       for (std::size_t i = 0; i < e.props.size(); ++i)
         if (int(i) != list && !e.props[i].is_list) ints[i] = &m.face_ints[e.props[i].name];
       m.faces.reserve(e.count);
+      if (polygon_sizes) polygon_sizes->clear();
       std::vector<int> poly;
       for (std::uint64_t k = 0; k < e.count; ++k) {
         poly.clear();
@@ -442,6 +443,7 @@ Mesh read_ply(const std::string& path, WorldFrame* frame) {
             skip_record_prop(k, p);
           }
         }
+        if (polygon_sizes) polygon_sizes->push_back(int(poly.size()));
         for (std::size_t c = 1; c + 1 < poly.size(); ++c) {
           m.faces.push_back({poly[0], poly[c], poly[c + 1]});
           for (std::size_t i = 0; i < e.props.size(); ++i)

@@ -1,4 +1,3 @@
-#include "pm/io/number_text.h"
 #include "pm/io/poly_mesh.h"
 
 #include <cstdint>
@@ -7,6 +6,9 @@
 
 #include "pm/base/atomic_file.h"
 #include "pm/base/error.h"
+#include "pm/io/mesh_cgal.h"
+#include "pm/io/number_text.h"
+#include "pm/io/ply.h"
 
 namespace pm {
 namespace {
@@ -82,6 +84,49 @@ bool is_poly_mesh_path(const std::string& path) {
 }
 
 std::string poly_mesh_extensions() { return ".ply .obj .off"; }
+
+PolyMesh fans_to_polygons(const Mesh& tri, const std::vector<int>& polygon_sizes, const std::string& what) {
+  PolyMesh p;
+  p.vertices = tri.vertices;
+  p.faces.reserve(polygon_sizes.size());
+  std::size_t t = 0;
+  for (std::size_t k = 0; k < polygon_sizes.size(); ++k) {
+    const int n = polygon_sizes[k];
+    if (n != 3 && n != 4)
+      throw InputError(what + ": polygon " + std::to_string(k) + " has " + std::to_string(n) +
+                       " vertices; expected triangles and quads");
+    if (t + std::size_t(n - 2) > tri.faces.size()) break;
+    const auto& a = tri.faces[t];
+    if (n == 3) {
+      p.faces.push_back({a[0], a[1], a[2], -1});
+    } else {
+      const auto& b = tri.faces[t + 1];  // the fan (v0 v1 v2), (v0 v2 v3)
+      p.faces.push_back({a[0], a[1], a[2], b[2]});
+    }
+    t += std::size_t(n - 2);
+  }
+  if (t != tri.faces.size() || p.faces.size() != polygon_sizes.size())
+    throw InputError(what + ": " + std::to_string(polygon_sizes.size()) + " polygons do not make the " +
+                     std::to_string(tri.faces.size()) + " triangles read");
+  p.validate(what);
+  return p;
+}
+
+PolyMesh read_poly_mesh(const std::string& path, WorldFrame* frame) {
+  const std::string ext = file_extension(path);
+  std::vector<int> sizes;
+  Mesh tri;
+  if (frame) *frame = WorldFrame::lps;
+  if (ext == ".ply")
+    tri = read_ply(path, frame, &sizes);
+  else if (ext == ".off")
+    tri = read_off(path, &sizes);
+  else if (ext == ".obj")
+    tri = read_obj(path, &sizes);
+  else
+    throw UsageError(quote(path) + ": unknown polygon mesh extension; expected " + poly_mesh_extensions());
+  return fans_to_polygons(tri, sizes, quote(path));
+}
 
 void write_poly_mesh(const PolyMesh& m, const std::string& path, WorldFrame frame, bool binary) {
   const std::string e = file_extension(path);

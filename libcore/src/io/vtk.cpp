@@ -1,6 +1,5 @@
 // VTK legacy and XML writers, the legacy POLYDATA reader and the legacy
 // UNSTRUCTURED_GRID tetrahedra reader (see pm/io/vtk.h).
-#include "pm/io/number_text.h"
 #include "pm/io/vtk.h"
 
 #include <algorithm>
@@ -18,6 +17,7 @@
 
 #include "pm/base/atomic_file.h"
 #include "pm/base/error.h"
+#include "pm/io/number_text.h"
 #include "pm/io/ply.h"
 #include "scan.h"
 #include "vtk_cells.h"

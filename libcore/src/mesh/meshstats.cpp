@@ -7,6 +7,7 @@
 #include <unordered_set>
 
 #include "pm/base/error.h"
+#include "pm/mesh/quad_mesh.h"
 
 namespace pm {
 namespace {
@@ -242,7 +243,7 @@ Json to_json(const MeshQuality& q) {
   return j;
 }
 
-std::vector<std::string> check_requirements(const MeshQuality& q, const std::string& req) {
+std::vector<std::string> check_requirements(const MeshQuality& q, const std::string& req, const QuadQuality* quads) {
   std::vector<std::string> failed;
   std::stringstream ss(req);
   std::string item;
@@ -260,7 +261,8 @@ std::vector<std::string> check_requirements(const MeshQuality& q, const std::str
         throw UsageError("requirement \"" + item +
                          "\" is unknown; expected watertight, manifold, no_self_intersections or KEY>=V, KEY<=V, "
                          "KEY=V with KEY in rr_min rr_mean min_angle valence6 valence_outside_5_7 edge_le_2h crease_share_20 "
-                         "dist_vertex_max dist_centroid_max genus components");
+                         "dist_vertex_max dist_centroid_max genus components (polygon meshes: quad_share "
+                         "corner_share_70_110 valence4_share jacobian_min)");
       const std::string key = item.substr(0, op);
       std::string cmp = item.substr(op, item[op + 1] == '=' ? 2 : 1);
       double value = 0;
@@ -281,6 +283,14 @@ std::vector<std::string> check_requirements(const MeshQuality& q, const std::str
       else if (key == "dist_centroid_max") have = q.dist_centroid_max;
       else if (key == "genus") have = double(t.genus);
       else if (key == "components") have = double(t.components);
+      else if (key == "quad_share" || key == "corner_share_70_110" || key == "valence4_share" || key == "jacobian_min") {
+        if (!quads)
+          throw UsageError("requirement \"" + item + "\": " + key + " needs a polygon mesh with quads (.ply .obj .off)");
+        have = key == "quad_share"            ? quads->quad_share()
+               : key == "corner_share_70_110" ? quads->corner_share_70_110()
+               : key == "valence4_share"      ? quads->valence4_share()
+                                              : quads->jacobian_min;
+      }
       else throw UsageError("requirement \"" + item + "\": unknown key \"" + key + "\"");
       if (cmp == ">=") ok = have >= value;
       else if (cmp == "<=") ok = have <= value;

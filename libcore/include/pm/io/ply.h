@@ -3,6 +3,7 @@
 // arbitrary named vertex scalars and per-face int properties on a
 // non-manifold polygon soup.
 #include <string>
+#include <vector>
 
 #include "pm/base/mesh.h"
 #include "pm/io/frame.h"
@@ -17,7 +18,9 @@ namespace pm {
 /// from a `comment frame RAS` / `SPACE=RAS` line (LPS when none says so).
 /// \throw IoError when unreadable, InputError naming the file, the record and
 /// the expectation on malformed content.
-Mesh read_ply(const std::string& path, WorldFrame* frame = nullptr);
+/// `polygon_sizes` (when not null) receives each face's vertex count, in
+/// order: face k became its n - 2 fan triangles (pm::fans_to_polygons).
+Mesh read_ply(const std::string& path, WorldFrame* frame = nullptr, std::vector<int>* polygon_sizes = nullptr);
 
 /// Write PLY to `path` directly (no atomic rename: write_mesh does that):
 /// positions, normals and vertex scalars as float, face properties as int, and

@@ -13,7 +13,9 @@ namespace pm {
 /// least 3) are fan-triangulated (v0 v1 v2, v0 v2 v3, ...).
 /// \throw InputError "fn: "path": polygon i ..." when a polygon has fewer than
 /// 3 vertices or an index >= points.size(), or there are more than INT_MAX points.
+/// `polygon_sizes` (when not null) receives each polygon's vertex count, in
+/// order: polygon k became its n - 2 fan triangles (pm::fans_to_polygons).
 Mesh mesh_from_polygons(std::vector<Vec3> points, const std::vector<std::vector<std::size_t>>& polygons,
-                        const std::string& fn, const std::string& path);
+                        const std::string& fn, const std::string& path, std::vector<int>* polygon_sizes = nullptr);
 
 }  // namespace pm

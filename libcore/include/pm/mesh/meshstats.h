@@ -13,6 +13,8 @@
 
 namespace pm {
 
+struct QuadQuality;  // pm/mesh/quad_mesh.h
+
 struct MeshQualityParams {
   const ScalarField* field = nullptr;  ///< surface F = iso to measure distances to (optional)
   double iso = 0;
@@ -70,8 +72,11 @@ Json to_json(const MeshQuality& q);
 /// Check `requirements`, a comma-separated list such as
 /// "rr_min>=0.3,rr_mean>=0.94,valence6>=0.65,crease_share_20<=0.03,watertight,manifold,genus=0,
 /// no_self_intersections".
+/// With `quads` (a polygon mesh's pm::quad_quality) also quad_share,
+/// corner_share_70_110, valence4_share and jacobian_min.
 /// Returns the failed ones (empty = all met). \throw UsageError for an unknown key.
-std::vector<std::string> check_requirements(const MeshQuality& q, const std::string& requirements);
+std::vector<std::string> check_requirements(const MeshQuality& q, const std::string& requirements,
+                                            const QuadQuality* quads = nullptr);
 
 /// Number of intersecting pairs of non-adjacent triangles (CGAL Polygon Mesh
 /// Processing); -1 when the mesh is not a manifold polygon mesh.
