@@ -13,6 +13,7 @@ from the tools' JSON.
 """
 import argparse
 import datetime
+import glob
 import json
 import os
 import shutil
@@ -51,7 +52,7 @@ DATASETS = [
 TARGETS = ("dihedral angles in [12°, 160°], >= 99% of tetrahedra with all six in [25°, 140°], radius ratio "
            "mean >= 0.80, every tetrahedron positive, the boundary the improved surface")
 
-SURFACE_STAGES = ["volconv", "argmax", "morph", "tighten", "medialaxis", "sizingfield", "gradlimit", "mcinit",
+SURFACE_STAGES = ["volconv", "argmax", "morph", "tighten", "medialaxis", "medialaxis_*", "sizingfield", "gradlimit", "mcinit",
                   "particles", "multiparticles", "tetlabel"]
 VOLUME_STAGES = ["gradlimit_volume", "particles_volume", "tets"]
 
@@ -78,11 +79,12 @@ def run_label(args):
 
 
 def seconds(out, stages):
+    """Each stage's --stats total; a stage "name_*" sums its files (the per-material medial axes) as "name"."""
     s = {}
     for st in stages:
-        p = os.path.join(out, "work", f"{st}.json")
-        if os.path.exists(p):
-            s[st] = round(load(p).get("seconds", {}).get("total", 0.0), 1)
+        paths = sorted(glob.glob(os.path.join(out, "work", f"{st}.json")))
+        if paths:
+            s[st.rstrip("_*")] = round(sum(load(p).get("seconds", {}).get("total", 0.0) for p in paths), 1)
     return s
 
 
