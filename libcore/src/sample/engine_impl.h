@@ -158,7 +158,7 @@ void ParticleEngine<C>::gather(const Vec3& x, double reach, std::size_t self, st
   const double r2 = reach * reach;
   if (fine_w_ > 0) {
     const double need = reach + cell_moved_[cell];
-    if (need + fine_w_ < bins_.width()) {
+    if (need + fine_.width() < bins_.width()) {  // the rebuilt grid may be wider than fine_w_
       const Particle& P0 = parts_[self];
       fine_.visit_ball(x, need, [&](std::uint32_t q) {
         if (q == self || norm2(pos_[q] - x) >= r2) return;
@@ -249,7 +249,7 @@ void ParticleEngine<C>::update(std::size_t i, std::size_t cell, std::vector<Cand
     ok = ok && norm2(q.x - P.p.x) <= step_cap2 && attribute(q, attr) &&
          (!varying() || local_spacing(attr, P.type) <= spacing_cap);
     if (ok && reach < full_reach &&
-        std::sqrt(norm2(q.x - P.p.x)) + radius_bound(local_spacing(attr, P.type)) > reach) {
+        norm(q.x - P.p.x) + radius_bound(local_spacing(attr, P.type)) > reach) {
       reach = full_reach;
       if (use_lists_)
         gather_list(P.p.x, reach, i, buf);
@@ -473,7 +473,7 @@ double ParticleEngine<C>::sweep(double& energy) {
         if (fine_w_ > 0) {
           const Vec3 before = pos_[i];
           update(i, c, buf, ls);
-          cell_moved_[c] = std::max(cell_moved_[c], std::sqrt(norm2(pos_[i] - before)));
+          cell_moved_[c] = std::max(cell_moved_[c], norm(pos_[i] - before));
         } else {
           update(i, c, buf, ls);
         }

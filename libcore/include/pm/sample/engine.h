@@ -334,7 +334,6 @@ class DenseBins {
   /// Cells of width >= w, widened until there are at most max_cells.
   void build(const std::vector<Vec3>& x, double w, std::size_t max_cells);
   double width() const { return w_; }
-  bool empty() const { return start_.empty(); }
   /// Calls f(i) for every point i binned in a cell that meets the ball of
   /// radius r around x: a superset of the points within r, in a fixed order
   /// (rows by z then y, cells by x, points by index).
