@@ -11,6 +11,7 @@
 #include <map>
 
 #include "pm/base/error.h"
+#include "pm/baseline/gmsh_recombine.h"
 #include "pm/io/poly_mesh.h"
 
 namespace pm {
@@ -155,6 +156,44 @@ TEST(QuadMesh, PolygonFilesReadBackWithTheirQuads) {
   }
   std::remove(off.c_str());
   EXPECT_THROW(read_poly_mesh(dir + "/pm_quads.stl"), UsageError);
+}
+
+// The Gmsh baseline on the triangulated cube: every square is two triangles
+// across a diagonal, a perfect matching exists (pair each square's two
+// triangles), and Blossom, a minimum-cost perfect matching on quad quality,
+// must find exactly it: 96 unit squares, the vertices kept in place, each
+// directed edge once (the input's orientation), the cube's 8 valence-3 corners.
+TEST(QuadMesh, GmshBlossomRecombinesTheCubeIntoItsSquares) {
+  std::vector<int> type;
+  const Mesh m = checker_cube(4, type);
+  const GmshRecombineResult g = gmsh_recombine(m);
+  EXPECT_FALSE(g.gmsh_version.empty());
+  ASSERT_EQ(g.mesh.vertices.size(), m.vertices.size());
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) EXPECT_EQ(norm(g.mesh.vertices[i] - m.vertices[i]), 0.0) << i;
+  const QuadQuality q = quad_quality(g.mesh);
+  EXPECT_EQ(q.quads, 96u);
+  EXPECT_EQ(q.triangles, 0u);
+  EXPECT_NEAR(q.corner_min, 90.0, 1e-9);
+  EXPECT_NEAR(q.corner_max, 90.0, 1e-9);
+  EXPECT_NEAR(q.jacobian_min, 1.0, 1e-12);  // outward, as the input
+  EXPECT_EQ(q.boundary_edges, 0u);
+  EXPECT_EQ(q.nonmanifold_edges, 0u);
+  EXPECT_EQ(q.irregular, 8u);
+  std::map<std::pair<int, int>, int> directed;
+  for (const auto& f : g.mesh.faces)
+    for (int k = 0; k < 4; ++k) ++directed[{f[std::size_t(k)], f[std::size_t((k + 1) % 4)]}];
+  for (const auto& [e, count] : directed) {
+    EXPECT_EQ(count, 1) << e.first << " -> " << e.second;
+    EXPECT_EQ(directed.count({e.second, e.first}), 1u) << e.first << " -> " << e.second;
+  }
+  // The simple (greedy) algorithm may leave triangles but uses each once.
+  GmshRecombineParams simple;
+  simple.algorithm = 0;
+  const QuadQuality s = quad_quality(gmsh_recombine(m, simple).mesh);
+  EXPECT_EQ(2 * s.quads + s.triangles, m.faces.size());
+  EXPECT_EQ(s.boundary_edges, 0u);
+  Mesh empty;
+  EXPECT_THROW(gmsh_recombine(empty), InputError);
 }
 
 }  // namespace

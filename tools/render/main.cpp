@@ -1,5 +1,6 @@
 // render: draw a point set or mesh to a PNG (oriented disks, surface splats or
 // shaded triangles) for looking at results.
+#include <algorithm>
 #include <cstdio>
 
 #include "pm/base/atomic_file.h"
@@ -7,6 +8,7 @@
 #include "pm/base/stats.h"
 #include "pm/cli/run_tool.h"
 #include "pm/io/mesh.h"
+#include "pm/io/poly_mesh.h"
 #include "pm/io/png.h"
 #include "pm/io/tet_mesh.h"
 #include "pm/render/render.h"
@@ -81,7 +83,16 @@ int main(int argc, char** argv) {
       s["counts"] = {{"vertices", t.vertices.size()}, {"tetrahedra", t.tets.size()}};
       return;
     }
-    const pm::Mesh m = pm::read_mesh(in);
+    // Polygon files keep their quads: only the polygon sides are drawn as
+    // edges, and the faces can be coloured by `polygon_sides` (3 or 4).
+    std::vector<int> sides;
+    pm::Mesh m = pm::read_mesh_polygons(in, sides);
+    std::vector<std::uint8_t> flags;
+    if (std::any_of(sides.begin(), sides.end(), [](int n) { return n > 3; })) {
+      flags = pm::polygon_edge_flags(sides, m.faces.size());
+      auto& f = m.face_ints["polygon_sides"];
+      for (const int n : sides) f.insert(f.end(), std::size_t(n - 2), n);
+    }
     if (m.vertices.empty()) throw pm::InputError(pm::quote(in) + ": no vertices; expected a point set or mesh");
     for (std::size_t k = 0; k < m.vertices.size(); ++k)
       if (!pm::is_finite(m.vertices[k]))
@@ -97,7 +108,7 @@ int main(int argc, char** argv) {
     pm::Image img;
     {
       pm::ScopedStage stage("render");
-      img = pm::render(m, p);
+      img = pm::render(m, p, flags.empty() ? nullptr : &flags);
     }
     pm::write_png(img, out);
     auto& s = pm::stats();

@@ -77,9 +77,22 @@ void add_quad_options(CLI::App& app, QuadRun& r) {
                "Pair the triangles left after dropping like edges across unlike edges too")
       ->capture_default_str();
   app.add_flag("--ascii", r.ascii, "ASCII PLY instead of binary");
+  app.add_flag("--gmsh", r.gmsh,
+               "The baseline: recombine the same triangles with Gmsh instead (no types needed; Blossom matching, "
+               "the input's vertices kept)");
+  app.add_option("--gmsh-algorithm", r.gmsh_params.algorithm,
+                 "with --gmsh: Gmsh's Mesh.RecombinationAlgorithm (0 simple, 1 Blossom; 2 and 3, the full-quad "
+                 "variants, subdivide and change the vertices)")
+      ->check(CLI::Range(0, 3))
+      ->capture_default_str();
+  app.add_option("--gmsh-optimize-topology", r.gmsh_params.optimize_topology,
+                 "with --gmsh: Gmsh's Mesh.RecombineOptimizeTopology passes (> 0 adds, removes and moves vertices)")
+      ->check(CLI::Range(0, 100))
+      ->capture_default_str();
 }
 
 void check_quad_options(const QuadRun& r) {
+  if (r.gmsh && !r.types.empty()) throw UsageError("--gmsh recombines without types; drop --types");
   const std::string e = file_extension(r.output);
   if (e == ".stl" || e == ".mesh" || e == ".vtp" || e == ".vtk")
     throw UsageError("--output " + quote(r.output) + ": " + e + " is written with triangles only; expected " +
@@ -95,10 +108,16 @@ void run_quads(const QuadRun& r) {
     if (!is_finite(s.vertices[i]))
       throw InputError(quote(r.surface) + ": vertex " + std::to_string(i) + " is not finite; expected finite "
                        "coordinates");
-  const std::vector<int> type = types_of(s, r);
   QuadResult q;
   QuadQuality qq;
-  {
+  GmshRecombineResult g;
+  if (r.gmsh) {
+    ScopedStage stage("gmsh");
+    g = gmsh_recombine(s, r.gmsh_params);
+    q.mesh = std::move(g.mesh);
+    qq = quad_quality(q.mesh);
+  } else {
+    const std::vector<int> type = types_of(s, r);
     ScopedStage stage("quads");
     q = quad_dominant(s, type, r.params);
     qq = quad_quality(q.mesh);
@@ -110,14 +129,27 @@ void run_quads(const QuadRun& r) {
   auto& st = stats();
   st["inputs"] = {r.surface, r.types};
   st["outputs"] = {r.output};
-  st["parameters"] = {{"max_corner_deviation", r.params.max_corner_deviation},
-                      {"max_fold", r.params.max_fold},
-                      {"pair_leftovers", r.params.pair_leftovers}};
-  st["counts"] = {{"triangles_in", s.faces.size()},   {"like_edges", q.like_edges},
-                  {"like_merges", q.like_merges},     {"leftover_merges", q.leftover_merges},
-                  {"triangles_left", q.triangles_left}};
+  if (r.gmsh) {
+    st["inputs"] = {r.surface};
+    st["parameters"] = {{"method", "gmsh"},
+                        {"gmsh_version", g.gmsh_version},
+                        {"recombination_algorithm", r.gmsh_params.algorithm},
+                        {"optimize_topology", r.gmsh_params.optimize_topology}};
+    st["counts"] = {{"triangles_in", s.faces.size()},
+                    {"vertices_in", g.input_vertices},
+                    {"vertices_out", q.mesh.vertices.size()}};
+    st["seconds_gmsh"] = g.seconds;
+  } else {
+    st["parameters"] = {{"method", "types"},
+                        {"max_corner_deviation", r.params.max_corner_deviation},
+                        {"max_fold", r.params.max_fold},
+                        {"pair_leftovers", r.params.pair_leftovers}};
+    st["counts"] = {{"triangles_in", s.faces.size()},   {"like_edges", q.like_edges},
+                    {"like_merges", q.like_merges},     {"leftover_merges", q.leftover_merges},
+                    {"triangles_left", q.triangles_left}};
+  }
   st["quality"] = to_json(qq);
-  info(std::to_string(qq.quads) + " quads and " + std::to_string(qq.triangles) + " triangles (" +
+  info(std::string(r.gmsh ? "gmsh: " : "") + std::to_string(qq.quads) + " quads and " + std::to_string(qq.triangles) + " triangles (" +
        format_number(100 * qq.quad_share()) + "% quads), corners within 90 +- 20 deg " +
        format_number(100 * qq.corner_share_70_110()) + "%, valence 4 " + format_number(100 * qq.valence4_share()) +
        "%, scaled Jacobian min " + format_number(qq.jacobian_min) + ", " +

@@ -6,6 +6,7 @@
 
 #include "pm/base/atomic_file.h"
 #include "pm/base/error.h"
+#include "pm/io/mesh.h"
 #include "pm/io/mesh_cgal.h"
 #include "pm/io/number_text.h"
 #include "pm/io/ply.h"
@@ -126,6 +127,22 @@ PolyMesh read_poly_mesh(const std::string& path, WorldFrame* frame) {
   else
     throw UsageError(quote(path) + ": unknown polygon mesh extension; expected " + poly_mesh_extensions());
   return fans_to_polygons(tri, sizes, quote(path));
+}
+
+Mesh read_mesh_polygons(const std::string& path, std::vector<int>& polygon_sizes) {
+  polygon_sizes.clear();
+  if (!is_poly_mesh_path(path)) {
+    Mesh m = read_mesh(path);
+    polygon_sizes.assign(m.faces.size(), 3);
+    return m;
+  }
+  const std::string ext = file_extension(path);
+  WorldFrame frame = WorldFrame::lps;
+  Mesh m = ext == ".ply" ? read_ply(path, &frame, &polygon_sizes)
+                         : ext == ".off" ? read_off(path, &polygon_sizes) : read_obj(path, &polygon_sizes);
+  m.validate("read_mesh: " + quote(path));
+  convert_frame(m, frame, WorldFrame::lps);
+  return m;
 }
 
 void write_poly_mesh(const PolyMesh& m, const std::string& path, WorldFrame frame, bool binary) {

@@ -209,7 +209,8 @@ struct Frame {
 // ---------------------------------------------------------------------------
 // Triangles
 
-void render_mesh(const Mesh& m, const Camera& cam, const ColorSource& cs, bool edges, Frame& fb) {
+void render_mesh(const Mesh& m, const Camera& cam, const ColorSource& cs, bool edges, Frame& fb,
+                 const std::vector<std::uint8_t>* edge_flags) {
   const Shader shade(cam);
   std::vector<Vec3> s(m.vertices.size());
   for (std::size_t i = 0; i < s.size(); ++i) s[i] = cam.project(m.vertices[i]);
@@ -232,8 +233,12 @@ void render_mesh(const Mesh& m, const Camera& cam, const ColorSource& cs, bool e
     Vec3 flat_base = kPlain;
     if (cs.label) flat_base = category_color((*cs.label)[f]);
     // Edge lengths (pixels) to turn edge functions into distances.
-    const double la = std::hypot(c.x - b.x, c.y - b.y), lb = std::hypot(a.x - c.x, a.y - c.y),
-                 lc = std::hypot(b.x - a.x, b.y - a.y);
+    // Hidden edges (fan diagonals) get an inverse length of 0: never near.
+    const std::uint8_t drawn = edge_flags ? (*edge_flags)[f] : 7;
+    constexpr double kFar = 1e300;
+    const double ila = drawn & 2 ? 1 / std::hypot(c.x - b.x, c.y - b.y) : 0.0,
+                 ilb = drawn & 4 ? 1 / std::hypot(a.x - c.x, a.y - c.y) : 0.0,
+                 ilc = drawn & 1 ? 1 / std::hypot(b.x - a.x, b.y - a.y) : 0.0;
     const double inv = 1.0 / area;
     for (int y = y0; y <= y1; ++y)
       for (int x = x0; x <= x1; ++x) {
@@ -258,7 +263,8 @@ void render_mesh(const Mesh& m, const Camera& cam, const ColorSource& cs, bool e
           base = colormap(cs.t(wa * (*cs.scalar)[t[0]] + wb * (*cs.scalar)[t[1]] + wc * (*cs.scalar)[t[2]]));
         Vec3 col = shade(n, base);
         if (edges) {
-          const double d = std::min({std::fabs(ea) / la, std::fabs(eb) / lb, std::fabs(ec) / lc});
+          const double d = std::min({ila > 0 ? std::fabs(ea) * ila : kFar, ilb > 0 ? std::fabs(eb) * ilb : kFar,
+                                     ilc > 0 ? std::fabs(ec) * ilc : kFar});
           const double k = std::clamp(1.1 - d, 0.0, 1.0) * 0.85;
           col = col * (1 - k) + kEdge * k;
         }
@@ -566,7 +572,22 @@ ClipPlane clip_plane(const std::vector<Vec3>& points, const RenderParams& p, con
   return c;
 }
 
-Image render(const Mesh& m, const RenderParams& p) {
+std::vector<std::uint8_t> polygon_edge_flags(const std::vector<int>& polygon_sizes, std::size_t faces) {
+  std::vector<std::uint8_t> flags;
+  flags.reserve(faces);
+  for (const int n : polygon_sizes)
+    for (int k = 1; k + 1 < n; ++k)  // triangle (v0, vk, vk+1): its middle edge is a polygon side
+      flags.push_back(std::uint8_t(2 | (k == 1 ? 1 : 0) | (k == n - 2 ? 4 : 0)));
+  if (flags.size() != faces)
+    throw InputError("polygon_edge_flags: the polygons give " + std::to_string(flags.size()) + " triangles for " +
+                     std::to_string(faces) + " faces; expected the same count");
+  return flags;
+}
+
+Image render(const Mesh& m, const RenderParams& p, const std::vector<std::uint8_t>* edge_flags) {
+  if (edge_flags && edge_flags->size() != m.faces.size())
+    throw InputError("render: " + std::to_string(edge_flags->size()) + " edge flags for " +
+                     std::to_string(m.faces.size()) + " faces; expected one per face");
   const Setup s = setup(m, p);
   const ColorSource cs = color_source(m, p.color_by);
   if (cs.label && s.mode != "mesh")
@@ -578,6 +599,7 @@ Image render(const Mesh& m, const RenderParams& p) {
     const ClipPlane cp = clip_plane(m.vertices, p, s.cam);
     const int axis = cp.axis;
     Mesh kept;
+    std::vector<std::uint8_t> kept_flags;
     kept.vertices = m.vertices;
     kept.normals = m.normals;
     kept.vertex_scalars = m.vertex_scalars;
@@ -587,11 +609,12 @@ Image render(const Mesh& m, const RenderParams& p) {
       const double c = (m.vertices[t[0]][axis] + m.vertices[t[1]][axis] + m.vertices[t[2]][axis]) / 3;
       if ((c - cp.position) * cp.removed_side > 0) continue;
       kept.faces.push_back(t);
+      if (edge_flags) kept_flags.push_back((*edge_flags)[f]);
       for (const auto& [name, vals] : m.face_ints) kept.face_ints[name].push_back(vals[f]);
     }
     const ColorSource kcs = color_source(kept, p.color_by);
-    render_mesh(kept, s.cam, kcs, p.edges, fb);
-  } else if (s.mode == "mesh") render_mesh(m, s.cam, cs, p.edges, fb);
+    render_mesh(kept, s.cam, kcs, p.edges, fb, edge_flags ? &kept_flags : nullptr);
+  } else if (s.mode == "mesh") render_mesh(m, s.cam, cs, p.edges, fb, edge_flags);
   else if (s.mode == "disks") render_disks(m, s.cam, cs, s.radii, fb);
   else render_splats(m, s.cam, cs, s.radii, fb);
   Image img = fb.to_image(p.background);

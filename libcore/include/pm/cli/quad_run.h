@@ -3,9 +3,11 @@
 // two-type particles (`particles --quads`, meshed by `tetlabel`), take each
 // vertex's type, pair triangles into quads (pm::quad_dominant), write the
 // quad-dominant mesh and its quality (pm::quad_quality) into pm::stats().
+// With `gmsh`, Gmsh recombines the same triangles instead (the baseline).
 #include <CLI/CLI.hpp>
 #include <string>
 
+#include "pm/baseline/gmsh_recombine.h"
 #include "pm/io/frame.h"
 #include "pm/mesh/quad_mesh.h"
 
@@ -19,6 +21,10 @@ struct QuadRun {
   std::string types;
   std::string output;   ///< .ply .obj .off (quads kept)
   QuadParams params;
+  /// The baseline instead: Gmsh's recombination of the same triangles
+  /// (pm::gmsh_recombine); no types needed.
+  bool gmsh = false;
+  GmshRecombineParams gmsh_params;
   WorldFrame frame = WorldFrame::lps;
   bool ascii = false;
 };

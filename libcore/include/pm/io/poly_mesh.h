@@ -29,6 +29,12 @@ PolyMesh fans_to_polygons(const Mesh& tri, const std::vector<int>& polygon_sizes
 /// readers, and for polygons of more than 4 vertices.
 PolyMesh read_poly_mesh(const std::string& path, WorldFrame* frame = nullptr);
 
+/// As read_mesh (frame converted to LPS, properties kept), and each face's
+/// polygon: `polygon_sizes` gets the vertex count of every polygon of a .ply
+/// .obj .off file in file order, its fan triangles (v0, vk, vk+1) being
+/// consecutive faces; other formats give triangles only (all 3).
+Mesh read_mesh_polygons(const std::string& path, std::vector<int>& polygon_sizes);
+
 /// \throw UsageError for another extension (STL: triangles only), InputError
 /// when the mesh fails validate(), IoError when the file cannot be written.
 void write_poly_mesh(const PolyMesh& m, const std::string& path, WorldFrame frame = WorldFrame::lps,

@@ -104,6 +104,14 @@ ClipPlane clip_plane(const std::vector<Vec3>& points, const RenderParams& params
 /// \throw UsageError for bad params (size, mode, up, clip); InputError when m has no
 /// vertices, fails validate(), mode "mesh" has no faces, or color_by names no
 /// property (the message lists the available ones).
-Image render(const Mesh& m, const RenderParams& params);
+/// `edge_flags` (mesh mode with `edges`; #F or null = every edge): bit k of
+/// face f set draws its edge faces[f][k] -> faces[f][(k+1) % 3], so the
+/// diagonals of fan-triangulated quads stay hidden (polygon_edge_flags).
+Image render(const Mesh& m, const RenderParams& params, const std::vector<std::uint8_t>* edge_flags = nullptr);
+
+/// The edge flags that draw only the polygon sides of a mesh fan-triangulated
+/// as (v0, vk, vk+1) from polygons of `polygon_sizes` vertices (in order).
+/// \throw InputError when the sizes do not add up to `faces` triangles.
+std::vector<std::uint8_t> polygon_edge_flags(const std::vector<int>& polygon_sizes, std::size_t faces);
 
 }  // namespace pm
