@@ -197,6 +197,7 @@ int main(int argc, char** argv) {
     p.energy = energy == "radial" ? pm::ParticleEnergy::radial : pm::ParticleEnergy::cotangent;
     if (p.quads && (volume || !scenario.empty() || !hp_field.empty()))
       throw pm::UsageError("--quads samples a surface: not with --volume, --scenario or --field");
+    if (p.quads && !tol_opt->count()) p.tolerance = pm::engine_constants::kQuadTolerance;
     if (volume) {
       if (!scenario.empty() || !hp_field.empty() || !seeds_path.empty() || p.count)
         throw pm::UsageError("--scenario, --field, --init and --count do not apply with --volume");

@@ -156,6 +156,7 @@ void set_quad_types(EngineParams& p) {
     for (int b = 0; b < kMaxTypes; ++b) p.type_scale[a][b] = a == b ? std::sqrt(2.0) : 1.0;
   p.alternate_types = true;
   p.ideal_neighbours = 8;
+  p.recolour_sweeps = engine_constants::kQuadRecolourSweeps;
 }
 
 double particle_pair_energy(ParticleEnergy e, double r, double& dE_dr) {

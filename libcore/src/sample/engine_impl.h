@@ -18,6 +18,11 @@
 // outcome does not depend on the schedule. Colours run in a fixed order,
 // particles within a bin in a fixed order: bit-identical for any thread
 // count.
+#include <array>
+#include <atomic>
+#include <queue>
+#include <utility>
+
 #include "pm/sample/engine.h"
 
 namespace pm {
@@ -589,6 +594,89 @@ std::size_t ParticleEngine<C>::retype() {
   return flips.load();
 }
 
+template <class C>
+std::size_t ParticleEngine<C>::grow_types(bool force) {
+  rebin();
+  const std::size_t n = parts_.size();
+  // Pair weights w_ij over the particles within reach, as CSR lists.
+  std::vector<std::uint32_t> start(n + 1, 0), nbr;
+  std::vector<double> weight;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Particle& P = parts_[i];
+    start[i] = std::uint32_t(nbr.size());
+    if (P.fixed) continue;
+    for_each_near(P.p.x, radius_bound(P.spacing), [&](std::size_t q) {
+      if (q == i || !sees(P, parts_[q])) return;
+      const Particle& o = parts_[q];
+      const Cand c = cand_of(P, o);
+      const double w = c.weighted ? normal_weight(dot(P.p.n, c.n)) : 1.0;
+      const double r = norm(P.p.x - o.p.x);
+      double de = 0;
+      const double el = r * alpha(P.attr, o.attr, 0, 0) < 1
+                            ? particle_pair_energy(p_.energy, r * alpha(P.attr, o.attr, 0, 0), de)
+                            : 0.0;
+      const double eu = r * alpha(P.attr, o.attr, 0, 1) < 1
+                            ? particle_pair_energy(p_.energy, r * alpha(P.attr, o.attr, 0, 1), de)
+                            : 0.0;
+      if (w * (el - eu) <= 0) return;
+      nbr.push_back(std::uint32_t(q));
+      weight.push_back(w * (el - eu));
+    });
+  }
+  start[n] = std::uint32_t(nbr.size());
+  // pull[i][t]: weight towards typed neighbours of type t.
+  std::vector<std::array<double, 2>> pull(n, {0.0, 0.0});
+  std::vector<char> done(n, 0);
+  std::vector<std::uint8_t> old(n);
+  for (std::size_t i = 0; i < n; ++i) old[i] = parts_[i].type;
+  using Item = std::pair<double, std::uint32_t>;  // (pull, -index order via comparator)
+  auto later = [](const Item& a, const Item& b) { return a.first != b.first ? a.first < b.first : a.second > b.second; };
+  std::priority_queue<Item, std::vector<Item>, decltype(later)> heap(later);
+  auto settle = [&](std::size_t i, std::uint8_t t) {
+    done[i] = 1;
+    parts_[i].type = t;
+    for (std::uint32_t k = start[i]; k < start[i + 1]; ++k) {
+      const std::uint32_t q = nbr[k];
+      if (done[q]) continue;
+      pull[q][t] += weight[k];
+      heap.push({pull[q][0] + pull[q][1], q});
+    }
+  };
+  for (std::size_t i = 0; i < n; ++i)
+    if (parts_[i].fixed) settle(i, parts_[i].type);
+  for (std::size_t seed = 0; seed < n; ++seed) {
+    if (done[seed]) continue;
+    settle(seed, old[seed]);
+    while (!heap.empty()) {
+      const std::uint32_t q = heap.top().second;
+      heap.pop();
+      if (done[q]) continue;
+      settle(q, pull[q][0] > pull[q][1] ? std::uint8_t(1) : pull[q][1] > pull[q][0] ? std::uint8_t(0) : old[q]);
+    }
+  }
+  // Keep the new colouring only when its frustration (the weight of like
+  // pairs) is clearly lower: a packing already coloured as one grain gets the
+  // same colouring back, or its phase inverse, and keeps its own.
+  double cost_old = 0, cost_new = 0;
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::uint32_t k = start[i]; k < start[i + 1]; ++k) {
+      const std::uint32_t q = nbr[k];
+      if (old[i] == old[q]) cost_old += weight[k];
+      if (parts_[i].type == parts_[q].type) cost_new += weight[k];
+    }
+  if (!force && !(cost_new < (1 - engine_constants::kRetypeMargin) * cost_old)) {
+    for (std::size_t i = 0; i < n; ++i) parts_[i].type = old[i];
+    return 0;
+  }
+  std::size_t changed = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (parts_[i].type == old[i]) continue;
+    ++changed;
+    parts_[i].spacing = local_spacing(parts_[i].attr, parts_[i].type);
+  }
+  return changed;
+}
+
 // --- population -----------------------------------------------------------------
 
 template <class C>
@@ -818,7 +906,13 @@ typename ParticleEngine<C>::LevelResult ParticleEngine<C>::relax(const std::stri
   for (Particle& q : parts_) q.quiet = 0;
   for (int it = 0; it < p_.max_iters; ++it) {
     Stopwatch sw;
-    if (!use_lists_) {
+    if (p_.alternate_types && iteration_ < std::uint64_t(std::max(0, p_.recolour_sweeps))) {
+      grow_types(true);  // rebins (particles move in memory): lists are rebuilt
+      if (use_lists_) {
+        rebin(true);
+        build_lists();
+      }
+    } else if (!use_lists_) {
       rebin();  // gather from the bins, rebuilt every sweep
     } else if (lists_stale()) {
       rebin(true);
@@ -849,7 +943,10 @@ typename ParticleEngine<C>::LevelResult ParticleEngine<C>::relax(const std::stri
       since = 0;
       Stopwatch sp;
       bool changed = false;
-      if (p_.alternate_types) changed = retype() > 0;
+      if (p_.alternate_types) {
+        const std::size_t grown = grow_types(false);
+        changed = retype() + grown > 0;
+      }
       if (fixed_count)
         changed = adapt_spacing() || changed;
       else if (p_.population_control)

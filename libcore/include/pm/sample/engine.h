@@ -94,6 +94,8 @@ constexpr double kSizingSlack = 1.25;        ///< sizing: pair radius cap = 1.25
 constexpr double kSpacingSlack = 1.5;        ///< a move may grow the local spacing by at most this factor
 constexpr int kColours = 8;                  ///< bin colours (bx%2, by%2, bz%2)
 constexpr std::size_t kSerialBelow = 2000;   ///< sweeps of fewer particles run on one thread
+constexpr int kQuadRecolourSweeps = 300;   ///< quad packing: sweeps that start with grow_types (EngineParams::recolour_sweeps)
+constexpr double kQuadTolerance = 1e-6;    ///< quad packing: default convergence tolerance (a square lattice's shear is soft)
 constexpr double kRetypeMargin = 0.02;      ///< quad packing: a particle changes type when that lowers its energy by more
 constexpr double kGatherMargin = 0.25;       ///< first gather covers trial moves up to 0.25 s_i
 constexpr double kFirstGatherGrowth = 1.1;   ///< ... whose local spacing grew by at most 10%
@@ -226,6 +228,11 @@ struct EngineParams {
   /// square is unlike), and the coarse-to-fine split's 4 square corners
   /// alternate their types.
   bool alternate_types = false;
+  /// Two-type checkerboards: before each of the first `recolour_sweeps`
+  /// sweeps (counted over all levels), colour the packing again as one
+  /// growing grain (grow_types), so that the positions follow one colouring
+  /// instead of freezing into small grains of opposite phase.
+  int recolour_sweeps = 0;
   /// Neighbours of the ideal packing for the ideal energy (0 = the
   /// constraint's: 6 on a surface); a checkerboard of two types has 8 at
   /// r = β (4 unlike, 4 like on the diagonals).
@@ -470,6 +477,16 @@ class ParticleEngine {
   /// particle takes the type with the lower energy among its neighbours (bin
   /// colours in turn, so deterministic); returns the number that changed.
   std::size_t retype();
+  /// Two-type checkerboards: colour the whole packing again as one growing
+  /// grain, so that it does not freeze into many small grains of opposite
+  /// phase. Each pair within reach prefers to be unlike by
+  /// w_ij = E(like) - E(unlike) >= 0; starting from the first particle, the
+  /// untyped particle with the largest sum of w_ij towards typed ones is typed
+  /// next (as Prim's tree grows), taking the type that is unlike the larger
+  /// weight. Unless `force`, the new colouring is kept only when the weight of
+  /// its like pairs is lower by kRetypeMargin. Sequential and deterministic;
+  /// returns the number that changed.
+  std::size_t grow_types(bool force);
 
   // --- access -----------------------------------------------------------
   /// Reorder the particles stably by key(particle) (ascending).
