@@ -322,5 +322,47 @@ TEST(EngineTypes, LikeNeighboursSitFartherApart) {
   EXPECT_GT(typed, plain + 0.1);
 }
 
+// A perfect square lattice (on a sphere so large that the patch is flat to
+// 1e-3 spacings) with random types: grow_types must colour it as one
+// checkerboard, every nearest pair (a apart) unlike and every diagonal pair
+// (√2 a apart) like, since each pair prefers unlike with a weight that falls
+// with the distance and the growth types each particle against the larger
+// pull of its typed neighbours.
+TEST(EngineTypes, GrowTypesColoursASquareLatticeAsOneCheckerboard) {
+  const double R = 50, a = 0.2;
+  const Ball f({0, 0, 0}, R, 1.5 * R);
+  const SurfaceConstraint sc(f, 0.0, false);
+  EngineParams p = quiet_params(a);
+  set_quad_types(p);
+  ParticleEngine<SurfaceConstraint> e(sc, p);
+  const int m = 8;
+  for (int i = -m; i <= m; ++i)
+    for (int j = -m; j <= m; ++j) {
+      SurfaceConstraint::Point pt;
+      Probe pr;
+      ASSERT_TRUE(sc.place({i * a, j * a, R}, pt, 20, 0, pt, pr));
+      e.add(pt, std::uint8_t(counter_uniform(5, std::uint64_t((i + m) * 100 + j + m), 0, 1) < 0.5 ? 0 : 1));
+    }
+  e.grow_types(true);
+  const auto& ps = e.particles();
+  std::size_t nearest_pairs = 0, diagonal_pairs = 0;
+  for (std::size_t i = 0; i < ps.size(); ++i)
+    for (std::size_t j = i + 1; j < ps.size(); ++j) {
+      const double d = norm(ps[i].p.x - ps[j].p.x) / a;
+      if (std::fabs(d - 1) < 0.01) {
+        ++nearest_pairs;
+        EXPECT_NE(ps[i].type, ps[j].type) << i << " " << j;
+      } else if (std::fabs(d - std::sqrt(2.0)) < 0.01) {
+        ++diagonal_pairs;
+        EXPECT_EQ(ps[i].type, ps[j].type) << i << " " << j;
+      }
+    }
+  const std::size_t side = 2 * m + 1;
+  EXPECT_EQ(nearest_pairs, 2 * side * (side - 1));
+  EXPECT_EQ(diagonal_pairs, 2 * (side - 1) * (side - 1));
+  // Coloured again, the checkerboard is kept (no like pair left to save).
+  EXPECT_EQ(e.grow_types(false), 0u);
+}
+
 }  // namespace
 }  // namespace pm

@@ -77,6 +77,12 @@ void add_quad_options(CLI::App& app, QuadRun& r) {
                "Pair the triangles left after dropping like edges across unlike edges too")
       ->capture_default_str();
   app.add_flag("--ascii", r.ascii, "ASCII PLY instead of binary");
+  add_field_options(app, r.field);
+  app.add_option("--smooth", r.smooth.passes,
+                 "With the surface's field (-i VOLUME --iso C, or --implicit): passes of corner-angle smoothing, "
+                 "each vertex moved in its tangent plane and projected back onto F = iso (0 = off)")
+      ->check(CLI::Range(0, 1000))
+      ->capture_default_str();
   app.add_flag("--gmsh", r.gmsh,
                "The baseline: recombine the same triangles with Gmsh instead (no types needed; Blossom matching, "
                "the input's vertices kept)");
@@ -108,8 +114,15 @@ void run_quads(const QuadRun& r) {
     if (!is_finite(s.vertices[i]))
       throw InputError(quote(r.surface) + ": vertex " + std::to_string(i) + " is not finite; expected finite "
                        "coordinates");
+  LoadedField lf;
+  const bool have_field = !r.field.input.empty() || !r.field.implicit.empty();
+  if (have_field) {
+    ScopedStage stage("field");
+    lf = load_field(r.field);
+  }
   QuadResult q;
-  QuadQuality qq;
+  QuadQuality qq, raw;
+  QuadSmoothStats sm;
   GmshRecombineResult g;
   if (r.gmsh) {
     ScopedStage stage("gmsh");
@@ -121,6 +134,14 @@ void run_quads(const QuadRun& r) {
     ScopedStage stage("quads");
     q = quad_dominant(s, type, r.params);
     qq = quad_quality(q.mesh);
+  }
+  raw = qq;
+  if (have_field && r.smooth.passes > 0) {
+    ScopedStage stage("smooth");
+    sm = smooth_quads(q.mesh, *lf.field, lf.iso, r.smooth);
+    qq = quad_quality(q.mesh);
+  } else if (!have_field) {
+    info("no field given (-i VOLUME --iso C or --implicit): the quads are not smoothed");
   }
   {
     ScopedStage stage("write");
@@ -149,6 +170,16 @@ void run_quads(const QuadRun& r) {
                     {"triangles_left", q.triangles_left}};
   }
   st["quality"] = to_json(qq);
+  if (have_field) {
+    st["parameters"]["field"] = lf.field->describe();
+    st["parameters"]["iso"] = lf.iso;
+    st["parameters"]["smooth_passes"] = r.smooth.passes;
+    st["quality_unsmoothed"] = to_json(raw);
+    st["smoothing"] = {{"moves", sm.moves},
+                       {"rejected", sm.rejected},
+                       {"corner_objective_before", sm.objective_before},
+                       {"corner_objective_after", sm.objective_after}};
+  }
   info(std::string(r.gmsh ? "gmsh: " : "") + std::to_string(qq.quads) + " quads and " + std::to_string(qq.triangles) + " triangles (" +
        format_number(100 * qq.quad_share()) + "% quads), corners within 90 +- 20 deg " +
        format_number(100 * qq.corner_share_70_110()) + "%, valence 4 " + format_number(100 * qq.valence4_share()) +

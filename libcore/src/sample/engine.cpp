@@ -337,12 +337,16 @@ void SampleBins::axis_masks(std::size_t c, const Vec3& x, double slack, int m[3]
 
 bool SampleBins::block_of(const Vec3& x, std::int32_t out[27]) const {
   // The grid spans the points' box grown by one bin, so a point outside it
-  // has no point within one bin width.
+  // has no point within one bin width. A point in a margin bin (a point at
+  // the box's lower corner lands there when (x - lo) / w rounds below 1)
+  // takes the block of the bin inside it, which holds the margin bin too.
   if (hash_.empty()) return false;
   const Vec3 t = (x - lo_) / w_;
-  if (!(t.x >= 1 && t.y >= 1 && t.z >= 1)) return false;
-  const std::uint64_t ix = std::uint64_t(t.x), iy = std::uint64_t(t.y), iz = std::uint64_t(t.z);
-  if (ix + 1 >= nx_ || iy + 1 >= ny_ || iz + 1 >= nz_) return false;
+  if (!(t.x >= 0 && t.y >= 0 && t.z >= 0 && t.x < double(nx_) && t.y < double(ny_) && t.z < double(nz_)))
+    return false;
+  auto inner = [](double v, std::uint64_t n) { return std::min(std::max(std::uint64_t(v), std::uint64_t(1)), n - 2); };
+  if (nx_ < 3 || ny_ < 3 || nz_ < 3) return false;
+  const std::uint64_t ix = inner(t.x, nx_), iy = inner(t.y, ny_), iz = inner(t.z, nz_);
   int m = 0;
   for (int dz = -1; dz <= 1; ++dz)
     for (int dy = -1; dy <= 1; ++dy)

@@ -8,6 +8,8 @@
 #include <string>
 
 #include "pm/baseline/gmsh_recombine.h"
+#include "pm/cli/field_options.h"
+#include "pm/mesh/quad_smooth.h"
 #include "pm/io/frame.h"
 #include "pm/mesh/quad_mesh.h"
 
@@ -25,6 +27,10 @@ struct QuadRun {
   /// (pm::gmsh_recombine); no types needed.
   bool gmsh = false;
   GmshRecombineParams gmsh_params;
+  /// The surface's field (-i VOLUME --iso C, or --implicit): when given, the
+  /// quads are smoothed on it (pm::smooth_quads, `smooth.passes`).
+  FieldOptions field;
+  QuadSmoothParams smooth;
   WorldFrame frame = WorldFrame::lps;
   bool ascii = false;
 };
