@@ -105,6 +105,10 @@ EXTRA = [
     ("quadmesh", "STL output (triangles only)", [MISSING_M, "-o", o(".stl")], 2, o(".stl")),
     ("quadmesh", "surface without types", [TET, "-o", o(".ply")], 1, TET),
     ("quadmesh", "--max-fold -1", [TET, "-o", o(".ply"), "--max-fold", "-1"], 2, "--max-fold"),
+    ("quadmesh", "--smooth -1", [TET, "-o", o(".ply"), "--smooth", "-1"], 2, "--smooth"),
+    ("quadmesh", "--gmsh with --types", [TET, "--gmsh", "--types", TET, "-o", o(".ply")], 2, "--gmsh"),
+    ("quadmesh", "smoothing field missing", [TET, "--gmsh", "-i", MISSING_V, "--iso", "0", "-o", o(".ply")], 1,
+     MISSING_V),
     # a second input of the mesh tools is a volume (a field) or a point set
     ("tetlabel", "field missing", [SPHERE_PTS, "-i", MISSING_V, "--iso", "0", "-o", o(".ply")], 1, MISSING_V),
     ("tetlabel", "field 2-D", [SPHERE_PTS, "-i", PLANE, "--iso", "0", "-o", o(".ply")], 1, PLANE),

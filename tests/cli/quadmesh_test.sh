@@ -10,10 +10,18 @@ BIN=$1; SRC=$2
 T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
 PY=/usr/bin/python3
 "$BIN/particles" --implicit sphere:r=1 --spacing 0.12 --quads -o "$T/typed.ply" -q --stats "$T/p.json"
+# The one-grain colouring is sequential and the sweeps are coloured: the same bits for any --threads.
+"$BIN/particles" --implicit sphere:r=1 --spacing 0.12 --quads -o "$T/typed1.ply" -q --threads 1
+cmp "$T/typed.ply" "$T/typed1.ply"
 "$BIN/tetlabel" "$T/typed.ply" --implicit sphere:r=1 --iso 0 -o "$T/tri.ply" -q
 for ext in ply obj off; do
   "$BIN/quadmesh" "$T/tri.ply" --types "$T/typed.ply" -o "$T/quads.$ext" -q --stats "$T/q_$ext.json"
 done
+# Smoothed on the sphere: the same faces, corners closer to 90 (the stats keep the unsmoothed figures).
+"$BIN/quadmesh" "$T/tri.ply" --types "$T/typed.ply" -o "$T/smooth.ply" --implicit sphere:r=1 --iso 0 -q \
+  --stats "$T/q_smooth.json"
+# The baseline: Gmsh's Blossom recombination of the same triangles, vertices kept.
+"$BIN/quadmesh" "$T/tri.ply" --gmsh -o "$T/gmsh.ply" -q --stats "$T/q_gmsh.json"
 # The surface has no type of its own: without --types it is refused, naming the file.
 if "$BIN/quadmesh" "$T/tri.ply" -o "$T/x.ply" -q 2> "$T/err"; then echo "no-type surface accepted"; exit 1; fi
 grep -q "tri.ply.*no vertex property .type." "$T/err"
@@ -87,5 +95,24 @@ for ext in ("ply", "obj", "off"):
     # quad's diagonal (spacing 0.12, diagonal ~0.17 -> (0.17/2)^2 / 2 = 0.0036).
     assert ms["distance_to_surface"]["centroid_max"] < 0.01, (ext, ms["distance_to_surface"])
     assert ms["distance_to_surface"]["vertex_max"] < 1e-4, (ext, ms["distance_to_surface"])
+# Smoothing: the faces of the unsmoothed mesh, every vertex still on the sphere (our PLY writes doubles;
+# projection tolerance 1e-6 of the mean edge), and a corner share that did not drop.
+raw, smooth = meshio.read(f"{T}/quads.ply"), meshio.read(f"{T}/smooth.ply")
+assert [c.data.tolist() for c in raw.cells] == [c.data.tolist() for c in smooth.cells]
+r = np.linalg.norm(smooth.points, axis=1)
+assert np.abs(r - 1).max() < 1e-6, np.abs(r - 1).max()
+qs = json.load(open(f"{T}/q_smooth.json"))
+assert qs["quality_unsmoothed"]["corner_share_70_110"] == q["corner_share_70_110"], qs["quality_unsmoothed"]
+assert qs["quality"]["corner_share_70_110"] >= q["corner_share_70_110"], (qs["quality"], q)
+assert qs["smoothing"]["corner_objective_after"] < qs["smoothing"]["corner_objective_before"], qs["smoothing"]
+# Gmsh: the input's vertices, each triangle used once (2 per quad), closed.
+g = json.load(open(f"{T}/q_gmsh.json"))
+assert g["parameters"]["method"] == "gmsh" and g["parameters"]["recombination_algorithm"] == 1, g["parameters"]
+assert g["counts"]["vertices_out"] == g["counts"]["vertices_in"], g["counts"]
+gq = g["quality"]
+assert 2 * gq["quads"] + gq["triangles"] == g["counts"]["triangles_in"], (gq, g["counts"])
+assert gq["watertight"] and gq["quads"] > 0.9 * gq["faces"], gq
+gm = meshio.read(f"{T}/gmsh.ply")
+assert sum(len(c.data) for c in gm.cells if c.type == "quad") == gq["quads"]
 print("ok")
 PY

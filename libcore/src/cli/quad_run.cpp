@@ -178,7 +178,10 @@ void run_quads(const QuadRun& r) {
     st["smoothing"] = {{"moves", sm.moves},
                        {"rejected", sm.rejected},
                        {"corner_objective_before", sm.objective_before},
-                       {"corner_objective_after", sm.objective_after}};
+                       {"corner_objective_after", sm.objective_after},
+                       {"frozen", sm.frozen},
+                       {"redos", sm.redos},
+                       {"self_intersections", sm.self_intersections}};
   }
   info(std::string(r.gmsh ? "gmsh: " : "") + std::to_string(qq.quads) + " quads and " + std::to_string(qq.triangles) + " triangles (" +
        format_number(100 * qq.quad_share()) + "% quads), corners within 90 +- 20 deg " +

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "pm/base/error.h"
+#include "pm/mesh/meshstats.h"
 
 namespace pm {
 namespace {
@@ -82,6 +83,8 @@ class Smoother {
     }
     tol_ = p.tolerance * (count ? total / double(count) : 1.0);
   }
+
+  void freeze(std::size_t v) { pinned_[v] = 1; }
 
   QuadSmoothStats run() {
     QuadSmoothStats st;
@@ -252,10 +255,65 @@ class Smoother {
 
 }  // namespace
 
+namespace {
+
+// Fan triangles of m (v0, vk, vk+1) with the polygon each came from.
+Mesh fan_triangles(const PolyMesh& m, std::vector<int>& polygon) {
+  Mesh t;
+  t.vertices = m.vertices;
+  polygon.clear();
+  for (std::size_t f = 0; f < m.faces.size(); ++f) {
+    const auto& q = m.faces[f];
+    for (int k = 1; k + 1 < sides(q); ++k) {
+      t.faces.push_back({q[0], q[std::size_t(k)], q[std::size_t(k + 1)]});
+      polygon.push_back(int(f));
+    }
+  }
+  return t;
+}
+
+}  // namespace
+
 QuadSmoothStats smooth_quads(PolyMesh& m, const ScalarField& field, double iso, const QuadSmoothParams& p) {
   m.validate("smooth_quads");
   if (p.passes <= 0 || m.faces.empty()) return {};
-  return Smoother(m, field, iso, p).run();
+  const std::vector<Vec3> start = m.vertices;
+  std::vector<char> frozen(m.vertices.size(), 0);
+  std::vector<int> polygon;
+  std::vector<std::pair<int, int>> pairs;
+  QuadSmoothStats st;
+  for (int round = 0;; ++round) {
+    m.vertices = start;
+    Smoother s(m, field, iso, p);
+    for (std::size_t v = 0; v < frozen.size(); ++v)
+      if (frozen[v]) s.freeze(v);
+    const QuadSmoothStats r = s.run();
+    st.moves = r.moves;
+    st.rejected += r.rejected;
+    st.objective_after = r.objective_after;
+    if (round == 0) st.objective_before = r.objective_before;
+    pairs.clear();
+    if (!self_intersecting_faces(fan_triangles(m, polygon), pairs)) {
+      st.self_intersections = -1;
+      break;
+    }
+    st.self_intersections = int(pairs.size());
+    if (pairs.empty() || round == p.max_redos) break;
+    std::size_t added = 0;
+    for (const auto& [a, b] : pairs)
+      for (const int t : {a, b}) {
+        const auto& q = m.faces[std::size_t(polygon[std::size_t(t)])];
+        for (int k = 0; k < sides(q); ++k) {
+          char& f = frozen[std::size_t(q[std::size_t(k)])];
+          added += !f;
+          f = 1;
+        }
+      }
+    if (added == 0) break;  // the crossings are the input's own
+    ++st.redos;
+  }
+  for (char f : frozen) st.frozen += f != 0;
+  return st;
 }
 
 }  // namespace pm

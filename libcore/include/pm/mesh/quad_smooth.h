@@ -10,7 +10,10 @@
 // rectangles), is projected back onto F = iso with Newton, and keeps the move
 // only when the objective drops, no face folds and no quad's scaled Jacobian
 // falls below min(its value before, min_jacobian). Faces and topology are
-// kept; Gauss-Seidel in vertex order, deterministic. World units.
+// kept; Gauss-Seidel in vertex order, deterministic. Where the smoothed mesh
+// crosses itself (thin parts; CGAL's test on the fan triangles), the vertices
+// of the faces involved are frozen and the smoothing is redone from the
+// start. World units.
 #include <cstddef>
 
 #include "pm/base/mesh.h"
@@ -27,12 +30,16 @@ struct QuadSmoothParams {
   double max_fold_deg = 30;    ///< a move may turn a face's normal by at most this much
   int newton_steps = 6;        ///< projection onto F = iso after a move
   double tolerance = 1e-6;     ///< |F − iso| / |∇F| accepted after projection, relative to the mean edge length
+  int max_redos = 4;           ///< smoothings redone with more vertices frozen after crossings
 };
 
 struct QuadSmoothStats {
   std::size_t moves = 0;            ///< vertex moves kept (over all passes)
   std::size_t rejected = 0;         ///< trial moves refused (projection, fold, Jacobian) or not better
   double objective_before = 0, objective_after = 0;  ///< the corner term summed over all corners
+  std::size_t frozen = 0;            ///< vertices frozen because moving them made faces cross
+  int redos = 0;                     ///< smoothings redone
+  int self_intersections = 0;        ///< intersecting pairs of fan triangles left (-1: not tested)
 };
 
 /// Smooth `m` in place. A vertex on an open or non-manifold edge stays.
