@@ -15,7 +15,10 @@ add_library(pmfuzzcore STATIC
   libcore/src/base/log.cpp
   libcore/src/base/stats.cpp
   libcore/src/base/atomic_file.cpp
+  libcore/src/base/mesh.cpp
   libcore/src/io/volume_io.cpp
+  libcore/src/io/volume_header.cpp
+  libcore/src/io/frame.cpp
   libcore/src/io/nrrd.cpp
   libcore/src/io/vdb.cpp
   libcore/src/io/metaimage.cpp
@@ -24,6 +27,13 @@ add_library(pmfuzzcore STATIC
   libcore/src/io/gzip.cpp
   libcore/src/io/mesh.cpp
   libcore/src/io/mesh_cgal.cpp
+  libcore/src/io/ply.cpp
+  libcore/src/io/vtk.cpp
+  libcore/src/io/medit.cpp
+  libcore/src/io/gmsh.cpp
+  libcore/src/io/polygon_soup.cpp
+  libcore/src/io/tet_mesh.cpp
+  libcore/src/io/vtu.cpp
   libcore/src/io/nektar.cpp
   libcore/src/field/field.cpp
   libcore/src/field/kernels.cpp
@@ -34,6 +44,8 @@ add_library(pmfuzzcore STATIC
   libcore/src/field/hp_field.cpp
   libcore/src/baseline/lattice_iso.cpp
   libcore/src/sample/particles.cpp
+  libcore/src/sample/engine.cpp
+  libcore/src/sample/surface_constraint.cpp
   tests/fuzz/fuzz_util.cpp
 )
 target_include_directories(pmfuzzcore PUBLIC libcore/include tests/fuzz ${NIFTI_INCLUDE_DIR}/nifti
