@@ -1,19 +1,8 @@
 // medialaxis: medial-axis points of the zero set of a signed distance volume
 // by the foot-point method (§5.3.1).
-#include <sstream>
-#include <cmath>
-
-#include "pm/base/atomic_file.h"
-#include "pm/base/error.h"
-#include "pm/base/log.h"
-#include "pm/base/stats.h"
+// (pm/cli/medialaxis_run.h)
+#include "pm/cli/medialaxis_run.h"
 #include "pm/cli/run_tool.h"
-#include "pm/field/distance.h"
-#include "pm/io/mesh.h"
-#include "pm/io/volume_io.h"
-#include "pm/volume/medialaxis.h"
-#include "pm/cli/frame_option.h"
-#include "pm/io/output_path.h"
 
 int main(int argc, char** argv) {
   pm::Tool tool("medialaxis",
@@ -22,85 +11,7 @@ int main(int argc, char** argv) {
                 "surface point turns by more than alpha within a voxel. Writes a PLY point set with vertex "
                 "property 'distance' (to the surface, world units); inner and outer medial axis by default.",
                 "medialaxis brain_sdf.nrrd brain_ma.ply --volume brain_ma.nrrd");
-  std::string in, out, volume, side = "both", inside = "below", sdf_out;
-  double iso = std::nan("");
-  pm::MedialAxisParams p;
-  tool.app.add_option("input", in, "Signed distance volume (negative inside)")->required();
-  tool.app.add_option("output", out, "Medial-axis points (.ply .vtp .vtk), world units")->required();
-  tool.app.add_option("--cos-alpha", p.cos_alpha, "cos of the smallest turn of the characteristic that marks the "
-                                                  "medial axis, in (-1, 1); dimensionless")->capture_default_str();
-  tool.app.add_option("--volume", volume, "Also write a uint8 volume with 1 at the node nearest each point");
-  tool.app.add_option("--side", side, "Which medial axis: inside, outside or both")
-      ->check(CLI::IsMember({"inside", "outside", "both"}))
-      ->capture_default_str();
-  tool.app.add_option("--iso", iso, "The input is a grey-level volume: use the signed distance to its level set "
-                                  "at this value (input units) instead");
-  tool.app.add_option("--inside", inside, "With --iso: which values are inside, below (F < iso, the default) or "
-                                          "above (CT bone)")
-      ->check(CLI::IsMember({"below", "above"}))
-      ->capture_default_str();
-  tool.app.add_option("--sdf-out", sdf_out, "With --iso: also write that signed distance volume (for sizingfield)");
-  tool.app.add_option("--foot-iterations", p.foot_iterations, "Tangent-plane refinements of each foot point")
-      ->capture_default_str();
-
-  pm::WorldFrame frame = pm::WorldFrame::lps;
-  pm::add_frame_option(tool.app, frame);
-  return tool.run(argc, argv, [&] {
-    pm::check_output_path(out, pm::OutputKind::points, "output");
-    pm::check_output_path(volume, pm::OutputKind::volume, "--volume");
-    pm::check_output_path(sdf_out, pm::OutputKind::volume, "--sdf-out");
-    auto& st = pm::stats();
-    st["inputs"] = {in};
-    p.inside = side != "outside";
-    p.outside = side != "inside";
-    st["parameters"] = {{"cos_alpha", p.cos_alpha}, {"side", side}, {"foot_iterations", p.foot_iterations}};
-    if (!(p.cos_alpha > -1 && p.cos_alpha < 1))
-      throw pm::UsageError("--cos-alpha " + pm::format_number(p.cos_alpha) + "; expected a value in (-1, 1)");
-    if (p.foot_iterations < 0)
-      throw pm::UsageError("--foot-iterations " + std::to_string(p.foot_iterations) + "; expected >= 0");
-    if (!sdf_out.empty() && std::isnan(iso)) throw pm::UsageError("--sdf-out needs --iso");
-    pm::Volume sdf = pm::read_volume(in);
-    if (!std::isnan(iso)) {
-      pm::ScopedStage stage("distance");
-      pm::DistanceParams dp;
-      dp.iso = iso;
-      try {
-        sdf = pm::signed_distance(sdf, dp);
-      } catch (const pm::InputError& e) {
-        throw pm::InputError(pm::quote(in) + ": " + e.what());
-      }
-      if (inside == "above") {
-        float* v = sdf.data<float>();
-        for (std::size_t c = 0; c < sdf.count(); ++c) v[c] = -v[c];
-      }
-      st["parameters"]["iso"] = iso;
-      st["parameters"]["inside"] = inside;
-    }
-    pm::MedialAxisResult r;
-    {
-      pm::ScopedStage stage("medialaxis");
-      try {
-        r = pm::medial_axis(sdf, p);
-      } catch (const pm::InputError& e) {
-        throw pm::InputError(pm::quote(in) + ": " + e.what() +
-                             (std::isnan(iso) ? "; tighten a mask first, or give --iso for a grey-level volume" : ""));
-      }
-    }
-    if (r.points.vertices.empty()) pm::warn("no medial-axis points found");
-    pm::info(std::to_string(r.points.vertices.size()) + " medial-axis points (" + std::to_string(r.inner) +
-             " inner, " + std::to_string(r.outer) + " outer); " + std::to_string(r.nodes_refined) +
-             " foot points refined on the field");
-    pm::write_mesh(r.points, out, {true, frame});
-    if (!volume.empty()) pm::write_volume(pm::mark_points(sdf, r.points.vertices), volume);
-    if (!sdf_out.empty()) {
-      pm::VolumeWriteParams wp;
-      wp.compress = false;  // float distances barely compress; gzip costs seconds on 256^3
-      pm::write_volume(sdf, sdf_out, wp);
-    }
-    st["outputs"] = pm::Json{out};
-    if (!volume.empty()) st["outputs"].push_back(volume);
-    if (!sdf_out.empty()) st["outputs"].push_back(sdf_out);
-    st["counts"] = {{"points", r.points.vertices.size()}, {"inner", r.inner}, {"outer", r.outer},
-                    {"nodes_refined", r.nodes_refined}, {"nodes", sdf.count()}};
-  });
+  pm::MedialAxisRun r;
+  pm::add_medialaxis_options(tool.app, r);
+  return tool.run(argc, argv, [&] { pm::run_medialaxis(r, tool.flags); });
 }

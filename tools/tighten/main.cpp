@@ -1,12 +1,8 @@
 // tighten: smooth a binary mask into a signed distance volume whose zero set
 // has radius of curvature >= r (Williams–Rossignac tightening, §2.5.2).
-#include "pm/base/error.h"
-#include "pm/base/log.h"
-#include "pm/base/stats.h"
+// (pm/cli/tighten_run.h)
 #include "pm/cli/run_tool.h"
-#include "pm/io/volume_io.h"
-#include "pm/volume/tighten.h"
-#include "pm/io/output_path.h"
+#include "pm/cli/tighten_run.h"
 
 int main(int argc, char** argv) {
   pm::Tool tool("tighten",
@@ -18,126 +14,7 @@ int main(int argc, char** argv) {
                 "tighten brain.nrrd brain_sdf.nrrd --radius 1.5 --upsample 2\n"
                 "  tighten ct_mask.nrrd ct_sdf.nrrd          # radius auto: the largest voxel spacing\n"
                 "  tighten labels.nrrd 'out/sdf_%d.nrrd' --per-label --radius 1 --upsample 2   # Chapter 6");
-  std::string in, out;
-  pm::TightenParams p;
-  bool per_label = false;
-  tool.app.add_option("input", in, "Binary mask volume (label map with --per-label)")->required();
-  tool.app.add_option("output", out, "Signed distance volume (format by extension); with --per-label a pattern "
-                                     "where %d becomes each label, e.g. out/sdf_%d.nrrd")->required();
-  tool.app.add_flag("--per-label", per_label,
-                    "Chapter 6: input is a label map; tighten every label (0 included) as its own mask, all on "
-                    "the input grid (upsampled by --upsample; the border is extended by replicating labels, not "
-                    "treated as an interface) and write one signed distance per label (negative inside)");
-  std::string radius = "auto", upsample = "auto";
-  tool.app.add_option("-r,--radius", radius,
-                      "Tightening radius R, world units (> 0); auto = the largest voxel spacing of the input (from "
-                      "its header, so anisotropic slices are smoothed), divided by the automatic --upsample K "
-                      "on tiny volumes")
-      ->capture_default_str();
-  tool.app.add_option("--upsample", upsample,
-                      "Resample the mask K (1-8) times finer first (trilinear), for R below a voxel or so; output "
-                      "spacing h/K; auto = 1, or on a volume with fewer than 8 voxels along an axis the smallest K "
-                      "giving 16 (at most 8)")
-      ->capture_default_str();
-  tool.app.add_option("--iterations", p.max_iterations, "Most flow steps; 0 = automatic (until converged, at "
-                                                        "most 20 (R/h)^2 + 100)")->capture_default_str();
-  tool.app.add_option("--tolerance", p.tolerance, "Converged when the zero set moves less than this per step, "
-                                                  "voxels")->capture_default_str();
-  tool.app.add_option("--reinit", p.reinit_every, "Every N flow steps, re-distance the flowing field if |grad phi| at the zero set is off 1 by > 0.5")->capture_default_str();
-  tool.app.add_flag("--positive-inside", p.positive_inside, "Write positive inside, negative outside (Chapter 6)");
-  bool gzip = false;
-  tool.app.add_flag("--gzip", gzip, "Compress the output where the format allows (float distances shrink by only "
-                                    "~10% and gzip takes seconds on 256^3; off by default)");
-
-  return tool.run(argc, argv, [&] {
-    pm::check_output_path(out, pm::OutputKind::volume, "output");
-    auto& st = pm::stats();
-    double r_given = 0;
-    int k_given = 0;
-    if (radius != "auto") {
-      std::size_t used = 0;
-      try {
-        r_given = std::stod(radius, &used);
-      } catch (const std::exception&) {
-        used = 0;
-      }
-      if (used != radius.size()) throw pm::UsageError("--radius " + radius + "; expected a number > 0 (world units) or auto");
-      if (!(r_given > 0))
-        throw pm::UsageError("tighten: radius " + std::to_string(r_given) + " is invalid; expected > 0 (world units) or auto");
-    }
-    if (upsample != "auto") {
-      std::size_t used = 0;
-      try {
-        k_given = std::stoi(upsample, &used);
-      } catch (const std::exception&) {
-        used = 0;
-      }
-      if (used != upsample.size()) throw pm::UsageError("--upsample " + upsample + "; expected an integer 1 to 8 or auto");
-      if (k_given < 1 || k_given > 8)
-        throw pm::UsageError("tighten: upsample " + std::to_string(k_given) + " is invalid; expected 1 to 8 or auto");
-    }
-    if (!pm::is_volume_path(out)) throw pm::UsageError("output " + pm::quote(out) + ": unknown volume extension");
-    const pm::Volume input = pm::read_volume(in);
-    const pm::TightenDefaults d = pm::tighten_defaults(input, r_given, k_given);
-    p.radius = d.radius;
-    p.upsample = d.upsample;
-    if (radius == "auto" || upsample == "auto")
-      pm::info("radius " + std::to_string(p.radius) + " (world units), upsample " + std::to_string(p.upsample) +
-               (radius == "auto" ? " (radius from the header's largest spacing" : " (") +
-               (upsample == "auto" && p.upsample > 1 ? ", tiny volume upsampled)" : ")"));
-    st["inputs"] = {in};
-    st["parameters"] = {{"radius", p.radius}, {"upsample", p.upsample}, {"iterations", p.max_iterations},
-                        {"tolerance", p.tolerance}, {"reinit", p.reinit_every}, {"positive_inside", p.positive_inside},
-                        {"gzip", gzip}};
-    pm::VolumeWriteParams wp;
-    wp.compress = gzip;
-    if (per_label) {
-      const auto pct = out.find("%d");
-      if (pct == std::string::npos || out.find("%d", pct + 1) != std::string::npos)
-        throw pm::UsageError("output " + pm::quote(out) + ": with --per-label expected a pattern with one %d");
-      const pm::Volume& labels = input;
-      pm::Json per = pm::Json::object(), outputs = pm::Json::array();
-      pm::ScopedStage stage("tighten");
-      try {
-        pm::tighten_labels(labels, p, [&](int label, pm::TightenResult&& r) {
-          const std::string path = out.substr(0, pct) + std::to_string(label) + out.substr(pct + 2);
-          if (!r.converged)
-            pm::warn("label " + std::to_string(label) + ": not converged after " + std::to_string(r.iterations) +
-                     " steps (last move " + std::to_string(r.last_change) + " voxels); raise --iterations");
-          pm::info("label " + std::to_string(label) + ": " + std::to_string(r.iterations) + " flow steps -> " + path);
-          pm::write_volume(r.distance, path, wp);
-          outputs.push_back(path);
-          per[std::to_string(label)] = {{"inside_voxels", r.inside_voxels}, {"mortar_nodes", r.mortar_nodes},
-                                        {"iterations", r.iterations}, {"reinits", r.reinits}, {"converged", r.converged},
-                                        {"last_change_voxels", r.last_change}};
-        });
-      } catch (const pm::InputError& e) {
-        throw pm::InputError(pm::quote(in) + ": " + e.what());
-      }
-      st["outputs"] = outputs;
-      st["counts"] = {{"labels", per.size()}, {"per_label", per}};
-      return;
-    }
-    const pm::Volume& mask = input;
-    pm::TightenResult r;
-    {
-      pm::ScopedStage stage("tighten");
-      try {
-        r = pm::tighten(mask, p);
-      } catch (const pm::InputError& e) {
-        throw pm::InputError(pm::quote(in) + ": " + e.what());
-      }
-    }
-    if (r.pad > 0)
-      pm::warn("the mask comes within R + 3 voxels of the border: padded by " + std::to_string(r.pad) +
-               " voxels on every side (output origin moved)");
-    if (!r.converged)
-      pm::warn("not converged after " + std::to_string(r.iterations) + " steps (last move " +
-               std::to_string(r.last_change) + " voxels); raise --iterations");
-    pm::info(std::to_string(r.iterations) + " flow steps over " + std::to_string(r.mortar_nodes) + " mortar nodes");
-    pm::write_volume(r.distance, out, wp);
-    st["outputs"] = {out};
-    st["counts"] = {{"inside_voxels", r.inside_voxels}, {"mortar_nodes", r.mortar_nodes}, {"iterations", r.iterations},
-                    {"reinits", r.reinits}, {"converged", r.converged}, {"pad", r.pad}, {"last_change_voxels", r.last_change}};
-  });
+  pm::TightenRun r;
+  pm::add_tighten_options(tool.app, r);
+  return tool.run(argc, argv, [&] { pm::run_tighten(r, tool.flags); });
 }
