@@ -1,16 +1,9 @@
 // mcinit: particle seeds from marching-cubes vertices of the reconstructed
 // isosurface, or on every material boundary of a label map (SPEC §5,
 // dissertation §5.3.3 and Chapter 6).
-#include "pm/base/error.h"
-#include "pm/base/log.h"
-#include "pm/base/stats.h"
-#include "pm/cli/field_options.h"
+// (pm/cli/mcinit_run.h)
+#include "pm/cli/mcinit_run.h"
 #include "pm/cli/run_tool.h"
-#include "pm/io/mesh.h"
-#include "pm/io/volume_io.h"
-#include "pm/volume/mcinit.h"
-#include "pm/cli/frame_option.h"
-#include "pm/io/output_path.h"
 
 int main(int argc, char** argv) {
   pm::Tool tool("mcinit",
@@ -20,54 +13,7 @@ int main(int argc, char** argv) {
                 "edges between two labels and at the centres of cells holding 3 or 4+ labels (PLY scalars "
                 "junction, label_a..label_d).",
                 "mcinit skull_2.9.inr seeds.ply --iso 2.9 --kernel mix --decimate 2");
-  std::string in, out, kernel = "bspline";
-  pm::McInitParams p;
-  bool junctions = false;
-  auto* iso = tool.app.add_option("--iso", p.iso, "Isovalue, in voxel value units (F < iso inside)");
-  tool.app.add_option("input", in, "Input volume (grey values, distance field, mask; label map with --junctions)")
-      ->required();
-  tool.app.add_option("output", out, "Seed points (.ply .vtp .vtk: vertices, normals, scalars), world units")->required();
-  pm::add_kernel_option(tool.app, kernel);
-  tool.app.add_option("--decimate", p.decimate, "Keep about one seed per K^3 cells (per component / label set)")
-      ->capture_default_str();
-  tool.app.add_option("--project-steps", p.project_steps, "Newton steps onto the isosurface (0 = raw edge points)")
-      ->capture_default_str();
-  tool.app.add_flag("--junctions", junctions, "Label map: seeds on material boundaries, triple lines, quadruple points");
-
-  pm::WorldFrame frame = pm::WorldFrame::lps;
-  pm::add_frame_option(tool.app, frame);
-  return tool.run(argc, argv, [&] {
-    pm::check_output_path(out, pm::OutputKind::points, "output");
-    auto& st = pm::stats();
-    if (p.decimate < 1) throw pm::UsageError("--decimate " + std::to_string(p.decimate) + "; expected >= 1");
-    p.field = pm::kernel_params(kernel);
-    if (junctions == (iso->count() > 0))
-      throw pm::UsageError(junctions ? "--junctions takes no --iso" : "--iso C is required (or --junctions)");
-    st["inputs"] = {in};
-    st["parameters"] = {{"iso", p.iso}, {"kernel", kernel}, {"decimate", p.decimate}, {"junctions", junctions}};
-    const pm::Volume v = pm::read_volume(in);
-    pm::ScopedStage stage("seeds");
-    pm::Mesh seeds;
-    try {
-      if (junctions) {
-        pm::JunctionResult r = pm::junction_seeds(v, {p.decimate});
-        pm::Json pairs = pm::Json::object();
-        for (const auto& [ab, n] : r.pairs) pairs[std::to_string(ab.first) + "-" + std::to_string(ab.second)] = n;
-        st["counts"] = {{"seeds", r.seeds.vertices.size()}, {"pairs", pairs}, {"triples", r.triples},
-                        {"quadruples", r.quadruples}};
-        seeds = std::move(r.seeds);
-      } else {
-        pm::McInitResult r = pm::mc_seeds(v, p);
-        st["counts"] = {{"seeds", r.seeds.vertices.size()}, {"crossings", r.crossings},
-                        {"components", r.components}, {"projected", r.projected}, {"max_residual", r.max_residual}};
-        pm::info(std::to_string(r.seeds.vertices.size()) + " seeds on " + std::to_string(r.components) +
-                 " components (" + std::to_string(r.crossings) + " crossing edges)");
-        seeds = std::move(r.seeds);
-      }
-    } catch (const pm::InputError& e) {
-      throw pm::InputError(pm::quote(in) + ": " + e.what());
-    }
-    pm::write_mesh(seeds, out, {true, frame});
-    st["outputs"] = {out};
-  });
+  pm::McInitRun r;
+  pm::add_mcinit_options(tool.app, r);
+  return tool.run(argc, argv, [&] { pm::run_mcinit(r, tool.flags); });
 }
