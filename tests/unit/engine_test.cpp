@@ -13,40 +13,14 @@
 #include "pm/sample/element_constraint.h"
 #include "pm/sample/surface_constraint.h"
 #include "pm/sample/volume_constraint.h"
+#include "test_fields.h"
 
 namespace pm {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-// |x - c| - r, exact distance (so |∇| = 1) with its Hessian.
-class Ball : public ScalarField {
- public:
-  Ball(const Vec3& c, double r, double half) : c_(c), r_(r), half_(half) {}
-  double value(const Vec3& x) const override { return norm(x - c_) - r_; }
-  double value_gradient(const Vec3& x, Vec3& g) const override {
-    g = normalized(x - c_);
-    return norm(x - c_) - r_;
-  }
-  double evaluate(const Vec3& x, Vec3& g, Mat3& h) const override {
-    const double d = norm(x - c_);
-    g = (x - c_) / d;
-    h = (Mat3::identity() - outer(g, g)) * (1.0 / d);
-    return d - r_;
-  }
-  Box domain() const override {
-    Box b;
-    b.extend(c_ - Vec3{half_, half_, half_});
-    b.extend(c_ + Vec3{half_, half_, half_});
-    return b;
-  }
-  double resolution() const override { return r_ / 50; }
-  std::string describe() const override { return "test ball"; }
-
- private:
-  Vec3 c_;
-  double r_, half_;
-};
+using test::Ball;
 
 EngineParams quiet_params(double s) {
   EngineParams p;

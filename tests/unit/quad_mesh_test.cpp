@@ -14,6 +14,7 @@
 #include "pm/baseline/gmsh_recombine.h"
 #include "pm/io/poly_mesh.h"
 #include "pm/mesh/quad_smooth.h"
+#include "test_fields.h"
 
 namespace pm {
 namespace {
@@ -197,34 +198,6 @@ TEST(QuadMesh, GmshBlossomRecombinesTheCubeIntoItsSquares) {
   EXPECT_THROW(gmsh_recombine(empty), InputError);
 }
 
-// |x - c| - r: the exact distance to a sphere.
-class SphereField : public ScalarField {
- public:
-  SphereField(const Vec3& c, double r) : c_(c), r_(r) {}
-  double value(const Vec3& x) const override { return norm(x - c_) - r_; }
-  double value_gradient(const Vec3& x, Vec3& g) const override {
-    g = normalized(x - c_);
-    return norm(x - c_) - r_;
-  }
-  double evaluate(const Vec3& x, Vec3& g, Mat3& h) const override {
-    const double d = norm(x - c_);
-    g = (x - c_) / d;
-    h = (Mat3::identity() - outer(g, g)) * (1.0 / d);
-    return d - r_;
-  }
-  Box domain() const override {
-    Box b;
-    b.extend(c_ - Vec3{2 * r_, 2 * r_, 2 * r_});
-    b.extend(c_ + Vec3{2 * r_, 2 * r_, 2 * r_});
-    return b;
-  }
-  double resolution() const override { return r_ / 100; }
-  std::string describe() const override { return "sphere"; }
-
- private:
-  Vec3 c_;
-  double r_;
-};
 
 // The cube's squares pushed onto a sphere about its centre (vertices
 // normalised): quads near the cube's edges and corners are skewed. Smoothing on the sphere must lower the corner objective
@@ -240,7 +213,7 @@ TEST(QuadSmooth, CubeSphereCornersComeCloserToRightAngles) {
   PolyMesh m = r.mesh;
   const Vec3 c(n / 2.0, n / 2.0, n / 2.0);
   for (Vec3& v : m.vertices) v = c + normalized(v - c) * 3.0;
-  const SphereField f(c, 3.0);
+  const test::Ball f(c, 3.0, 6.0);
   const QuadQuality before = quad_quality(m);
   std::vector<double> jac_before;
   auto jacobians = [](const PolyMesh& q) {

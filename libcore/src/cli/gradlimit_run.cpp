@@ -15,34 +15,28 @@
 namespace pm {
 
 void add_gradlimit_options(CLI::App& app, GradLimitRun& cfg) {
-  [[maybe_unused]] auto& in = cfg.input;
-  [[maybe_unused]] auto& out = cfg.output;
-  [[maybe_unused]] auto& method = cfg.method;
-  [[maybe_unused]] auto& p = cfg.params;
-  [[maybe_unused]] auto& inward = cfg.inward;
-  [[maybe_unused]] auto& band = cfg.band;
-  [[maybe_unused]] auto& max_size = cfg.max_size;
-  [[maybe_unused]] auto& max_size_opt = cfg.max_size_opt;
-  [[maybe_unused]] auto& gzip = cfg.gzip;
-
-  app.add_option("input", in, "Sizing field h, float voxels, world units")->required();
-  app.add_option("output", out, "Limited sizing field (format by extension)")->required();
-  app.add_option("--delta", p.delta, "Gradient bound |grad h| <= delta, dimensionless (> 0)")->capture_default_str();
-  app.add_option("--tolerance", p.tolerance, "upwind: stop when the largest relative change per sweep is below this")
+  app.add_option("input", cfg.input, "Sizing field h, float voxels, world units")->required();
+  app.add_option("output", cfg.output, "Limited sizing field (format by extension)")->required();
+  app.add_option("--delta", cfg.params.delta, "Gradient bound |grad h| <= delta, dimensionless (> 0)")
       ->capture_default_str();
-  app.add_option("--method", method,
+  app.add_option("--tolerance", cfg.params.tolerance,
+                 "upwind: stop when the largest relative change per sweep is below this")
+      ->capture_default_str();
+  app.add_option("--method", cfg.method,
                  "propagate (one ordered pass, exact 26-neighbour bound) or upwind "
                  "(Persson's explicit iteration; slow, for reference)")
       ->capture_default_str();
-  app.add_flag("--nan-unknown", p.nonfinite_unknown, "Treat NaN/Inf voxels as unknown instead of refusing them");
-  app.add_option("--inward", inward,
+  app.add_flag("--nan-unknown", cfg.params.nonfinite_unknown,
+               "Treat NaN/Inf voxels as unknown instead of refusing them");
+  app.add_option("--inward", cfg.inward,
                  "Interior sizing for volume packing: keep h only within --band of this "
                  "surface's vertices (.ply .off .obj .stl .vtk .vtp .mesh, world units) and "
                  "grow it inward from there with --delta");
-  app.add_option("--band", band, "With --inward: world units (default 2 voxels of the smallest spacing)");
-  max_size_opt = app.add_option("--max-size", max_size,
-                                "With --inward: cap on h, world units (> 0; default: the largest h near the surface)");
-  app.add_flag("--gzip", gzip,
+  app.add_option("--band", cfg.band, "With --inward: world units (default 2 voxels of the smallest spacing)");
+  cfg.max_size_opt =
+      app.add_option("--max-size", cfg.max_size,
+                     "With --inward: cap on h, world units (> 0; default: the largest h near the surface)");
+  app.add_flag("--gzip", cfg.gzip,
                "Compress the output where the format allows (a dense float field shrinks by "
                "only ~30% and gzip takes seconds on 256^3; off by default)");
 }

@@ -14,26 +14,19 @@
 namespace pm {
 
 void add_mcinit_options(CLI::App& app, McInitRun& cfg) {
-  [[maybe_unused]] auto& in = cfg.input;
-  [[maybe_unused]] auto& out = cfg.output;
-  [[maybe_unused]] auto& kernel = cfg.kernel;
-  [[maybe_unused]] auto& p = cfg.params;
-  [[maybe_unused]] auto& junctions = cfg.junctions;
-  [[maybe_unused]] auto& iso = cfg.iso;
-  [[maybe_unused]] auto& frame = cfg.frame;
-
-  iso = app.add_option("--iso", p.iso, "Isovalue, in voxel value units (F < iso inside)");
-  app.add_option("input", in, "Input volume (grey values, distance field, mask; label map with --junctions)")
+  cfg.iso = app.add_option("--iso", cfg.params.iso, "Isovalue, in voxel value units (F < iso inside)");
+  app.add_option("input", cfg.input, "Input volume (grey values, distance field, mask; label map with --junctions)")
       ->required();
-  app.add_option("output", out, "Seed points (.ply .vtp .vtk: vertices, normals, scalars), world units")->required();
-  pm::add_kernel_option(app, kernel);
-  app.add_option("--decimate", p.decimate, "Keep about one seed per K^3 cells (per component / label set)")
+  app.add_option("output", cfg.output, "Seed points (.ply .vtp .vtk: vertices, normals, scalars), world units")
+      ->required();
+  pm::add_kernel_option(app, cfg.kernel);
+  app.add_option("--decimate", cfg.params.decimate, "Keep about one seed per K^3 cells (per component / label set)")
       ->capture_default_str();
-  app.add_option("--project-steps", p.project_steps, "Newton steps onto the isosurface (0 = raw edge points)")
+  app.add_option("--project-steps", cfg.params.project_steps, "Newton steps onto the isosurface (0 = raw edge points)")
       ->capture_default_str();
-  app.add_flag("--junctions", junctions, "Label map: seeds on material boundaries, triple lines, quadruple points");
+  app.add_flag("--junctions", cfg.junctions, "Label map: seeds on material boundaries, triple lines, quadruple points");
 
-  pm::add_frame_option(app, frame);
+  pm::add_frame_option(app, cfg.frame);
 }
 
 void run_mcinit(McInitRun& cfg, const CommonFlags& flags) {

@@ -18,39 +18,29 @@
 namespace pm {
 
 void add_medialaxis_options(CLI::App& app, MedialAxisRun& cfg) {
-  [[maybe_unused]] auto& in = cfg.input;
-  [[maybe_unused]] auto& out = cfg.output;
-  [[maybe_unused]] auto& volume = cfg.volume;
-  [[maybe_unused]] auto& side = cfg.side;
-  [[maybe_unused]] auto& inside = cfg.inside;
-  [[maybe_unused]] auto& sdf_out = cfg.sdf_out;
-  [[maybe_unused]] auto& iso = cfg.iso;
-  [[maybe_unused]] auto& p = cfg.params;
-  [[maybe_unused]] auto& frame = cfg.frame;
-
-  app.add_option("input", in, "Signed distance volume (negative inside)")->required();
-  app.add_option("output", out, "Medial-axis points (.ply .vtp .vtk), world units")->required();
-  app.add_option("--cos-alpha", p.cos_alpha,
+  app.add_option("input", cfg.input, "Signed distance volume (negative inside)")->required();
+  app.add_option("output", cfg.output, "Medial-axis points (.ply .vtp .vtk), world units")->required();
+  app.add_option("--cos-alpha", cfg.params.cos_alpha,
                  "cos of the smallest turn of the characteristic that marks the "
                  "medial axis, in (-1, 1); dimensionless")
       ->capture_default_str();
-  app.add_option("--volume", volume, "Also write a uint8 volume with 1 at the node nearest each point");
-  app.add_option("--side", side, "Which medial axis: inside, outside or both")
+  app.add_option("--volume", cfg.volume, "Also write a uint8 volume with 1 at the node nearest each point");
+  app.add_option("--side", cfg.side, "Which medial axis: inside, outside or both")
       ->check(CLI::IsMember({"inside", "outside", "both"}))
       ->capture_default_str();
-  app.add_option("--iso", iso,
+  app.add_option("--iso", cfg.iso,
                  "The input is a grey-level volume: use the signed distance to its level set "
                  "at this value (input units) instead");
-  app.add_option("--inside", inside,
+  app.add_option("--inside", cfg.inside,
                  "With --iso: which values are inside, below (F < iso, the default) or "
                  "above (CT bone)")
       ->check(CLI::IsMember({"below", "above"}))
       ->capture_default_str();
-  app.add_option("--sdf-out", sdf_out, "With --iso: also write that signed distance volume (for sizingfield)");
-  app.add_option("--foot-iterations", p.foot_iterations, "Tangent-plane refinements of each foot point")
+  app.add_option("--sdf-out", cfg.sdf_out, "With --iso: also write that signed distance volume (for sizingfield)");
+  app.add_option("--foot-iterations", cfg.params.foot_iterations, "Tangent-plane refinements of each foot point")
       ->capture_default_str();
 
-  pm::add_frame_option(app, frame);
+  pm::add_frame_option(app, cfg.frame);
 }
 
 void run_medialaxis(MedialAxisRun& cfg, const CommonFlags& flags) {

@@ -70,33 +70,23 @@ void print_interface_table(const pm::InterfaceQuality& q) {
 }  // namespace
 
 void add_meshstats_options(CLI::App& app, MeshStatsRun& cfg) {
-  [[maybe_unused]] auto& mesh_path = cfg.mesh_path;
-  [[maybe_unused]] auto& out = cfg.output;
-  [[maybe_unused]] auto& sizing_path = cfg.sizing_path;
-  [[maybe_unused]] auto& require = cfg.require;
-  [[maybe_unused]] auto& no_self = cfg.no_self;
-  [[maybe_unused]] auto& single = cfg.single;
-  [[maybe_unused]] auto& seeds_path = cfg.seeds_path;
-  [[maybe_unused]] auto& min_seeds = cfg.min_seeds;
-  [[maybe_unused]] auto& fo = cfg.fo;
-
-  app.add_option("mesh", mesh_path,
+  app.add_option("mesh", cfg.mesh_path,
                  "Triangle mesh (.ply .vtk .mesh .obj .off .stl) or tetrahedral mesh (.mesh .vtu .vtk .msh)")
       ->required();
-  pm::add_field_options(app, fo);
-  app.add_option("--sizing", sizing_path, "Sizing field volume h (world units) for the edge/h check");
-  app.add_option("-o,--output", out, "Write the report as JSON ('-' = stdout)");
-  app.add_option("--require", require,
+  pm::add_field_options(app, cfg.fo);
+  app.add_option("--sizing", cfg.sizing_path, "Sizing field volume h (world units) for the edge/h check");
+  app.add_option("-o,--output", cfg.output, "Write the report as JSON ('-' = stdout)");
+  app.add_option("--require", cfg.require,
                  "Comma-separated checks, e.g. rr_min>=0.3,rr_mean>=0.94,valence6>=0.65,"
                  "valence_outside_5_7<=0.01,edge_le_2h>=0.9999,crease_share_20<=0.03,watertight,manifold,"
                  "no_self_intersections,genus=0; tetrahedra: dihedral_min>=12,dihedral_max<=160,share_25_140>=0.99,"
                  "rr_mean>=0.8,share_under_10<=0,positive,boundary_manifold,triangles_match");
-  app.add_flag("--no-self-intersections", no_self, "Skip the (slower) self-intersection test");
-  app.add_flag("--single", single, "Measure an interface mesh (label_a/label_b faces) as one plain mesh");
-  app.add_option("--seeds", seeds_path,
+  app.add_flag("--no-self-intersections", cfg.no_self, "Skip the (slower) self-intersection test");
+  app.add_flag("--single", cfg.single, "Measure an interface mesh (label_a/label_b faces) as one plain mesh");
+  app.add_option("--seeds", cfg.seeds_path,
                  "Marching-cubes seeds of the same surface (mcinit output, vertex property 'component'): "
                  "fail (exit 1) when a component of the isosurface has no mesh vertex near it");
-  app.add_option("--min-component-seeds", min_seeds,
+  app.add_option("--min-component-seeds", cfg.min_seeds,
                  "With --seeds: components with fewer seeds than this (smaller than a few voxels) only warn")
       ->capture_default_str();
 }

@@ -40,40 +40,30 @@ pm::Json counts_json(const std::map<std::int64_t, std::size_t>& c) {
 }  // namespace
 
 void add_morph_options(CLI::App& app, MorphRun& cfg) {
-  [[maybe_unused]] auto& in = cfg.input;
-  [[maybe_unused]] auto& out = cfg.output;
-  [[maybe_unused]] auto& op = cfg.op;
-  [[maybe_unused]] auto& stencil = cfg.stencil;
-  [[maybe_unused]] auto& ops = cfg.ops;
-  [[maybe_unused]] auto& labels = cfg.labels;
-  [[maybe_unused]] auto& p = cfg.params;
-  [[maybe_unused]] auto& iterations = cfg.iterations;
-  [[maybe_unused]] auto& grey = cfg.grey;
-
-  app.add_option("input", in, "Input mask or label map (integer values)")->required();
-  app.add_option("output", out, "Output volume, same voxel type (format by extension)")->required();
-  app.add_option("--op", op, "Operation: erode, dilate, open or close");
-  app.add_option("--stencil", stencil, "Stencil for --op: plus, ball, cube, f1, f2, f3, f4")->capture_default_str();
-  app.add_option("--iterations", iterations, "Repeat --op N times (open/close: N erosions then N dilations)")
+  app.add_option("input", cfg.input, "Input mask or label map (integer values)")->required();
+  app.add_option("output", cfg.output, "Output volume, same voxel type (format by extension)")->required();
+  app.add_option("--op", cfg.op, "Operation: erode, dilate, open or close");
+  app.add_option("--stencil", cfg.stencil, "Stencil for --op: plus, ball, cube, f1, f2, f3, f4")->capture_default_str();
+  app.add_option("--iterations", cfg.iterations, "Repeat --op N times (open/close: N erosions then N dilations)")
       ->capture_default_str();
-  app.add_option("--ops", ops,
+  app.add_option("--ops", cfg.ops,
                  "Operation sequence instead of --op, op:stencil[:N] left to right, e.g. "
                  "\"close:f4,open:f2\"; \"L=...\" entries (separated by ';') apply to label L");
-  app.add_option("--labels", labels,
+  app.add_option("--labels", cfg.labels,
                  "Labels to process, e.g. \"1,2\" or \"0-4\" (default: every non-zero "
                  "label; others are passive: they keep what nobody claims)");
-  app.add_option("--downsample", p.downsample,
+  app.add_option("--downsample", cfg.params.downsample,
                  "Integer factor K: K^3 voxels per output voxel (labels: "
                  "majority; with --grey: mean); spacing x K")
       ->capture_default_str();
-  app.add_flag("--vote", p.vote, "Fill empty voxels by voting among face neighbours");
-  app.add_option("--fill", p.fill, "Label of empty voxels without --vote")->capture_default_str();
-  app.add_option("--min-component", p.min_component,
+  app.add_flag("--vote", cfg.params.vote, "Fill empty voxels by voting among face neighbours");
+  app.add_option("--fill", cfg.params.fill, "Label of empty voxels without --vote")->capture_default_str();
+  app.add_option("--min-component", cfg.params.min_component,
                  "Remove connected components (6-neighbour, voxels of one label, background included) with "
                  "fewer than N voxels after morphology and downsampling, refilling them by voting from their "
                  "neighbours (implies --vote); 0 = keep all")
       ->capture_default_str();
-  app.add_flag("--grey", grey, "Grey-value input: only --downsample (block mean) is allowed");
+  app.add_flag("--grey", cfg.grey, "Grey-value input: only --downsample (block mean) is allowed");
 }
 
 void run_morph(MorphRun& cfg, const CommonFlags& flags) {

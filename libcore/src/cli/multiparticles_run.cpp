@@ -52,58 +52,45 @@ void record_stats(const pm::MultiParticleResult& r) {
 }  // namespace
 
 void add_multiparticles_options(CLI::App& app, MultiParticlesRun& cfg) {
-  [[maybe_unused]] auto& mo = cfg.materials;
-  [[maybe_unused]] auto& seeds_path = cfg.seeds_path;
-  [[maybe_unused]] auto& labels_path = cfg.labels_path;
-  [[maybe_unused]] auto& sizing_path = cfg.sizing_path;
-  [[maybe_unused]] auto& output = cfg.output;
-  [[maybe_unused]] auto& energy = cfg.energy;
-  [[maybe_unused]] auto& p = cfg.params;
-  [[maybe_unused]] auto& decimate = cfg.decimate;
-  [[maybe_unused]] auto& no_surfaces = cfg.no_surfaces;
-  [[maybe_unused]] auto& no_repair = cfg.no_repair;
-  [[maybe_unused]] auto& spacing = cfg.spacing;
-  [[maybe_unused]] auto& frame = cfg.frame;
-
-  pm::add_material_options(app, mo);
-  app.add_option("--seeds", seeds_path,
+  pm::add_material_options(app, cfg.materials);
+  app.add_option("--seeds", cfg.seeds_path,
                  "Junction seeds (PLY with vertex scalars junction, label_a..label_d as "
                  "written by mcinit --junctions)");
-  app.add_option("--labels", labels_path,
+  app.add_option("--labels", cfg.labels_path,
                  "Label map to compute junction seeds from (pm::junction_seeds; "
                  "labels must match the materials' labels)");
-  app.add_option("--decimate", decimate,
+  app.add_option("--decimate", cfg.decimate,
                  "With --labels or the default grid: keep about one seed per "
                  "N^3 cells per label set")
       ->capture_default_str();
-  spacing = app.add_option("--spacing", p.spacing,
-                           "Uniform particle spacing s, world units; required "
-                           "unless --sizing");
-  app.add_option("--sizing", sizing_path,
+  cfg.spacing = app.add_option("--spacing", cfg.params.spacing,
+                               "Uniform particle spacing s, world units; required "
+                               "unless --sizing");
+  app.add_option("--sizing", cfg.sizing_path,
                  "Sizing field volume h (world units, > 0, trilinear), e.g. the "
                  "minimum over the materials; must cover the junctions");
-  app.add_option("--energy", energy, "Pair energy: cotangent or radial")
+  app.add_option("--energy", cfg.energy, "Pair energy: cotangent or radial")
       ->check(CLI::IsMember({"cotangent", "radial"}))
       ->capture_default_str();
-  app.add_option("--tolerance", p.tolerance,
+  app.add_option("--tolerance", cfg.params.tolerance,
                  "A level has converged when the energy drops by less than this "
                  "fraction in one iteration")
       ->capture_default_str();
-  app.add_option("--max-iters", p.max_iters,
+  app.add_option("--max-iters", cfg.params.max_iters,
                  "Iteration limit per level (curves, surfaces); not converging is "
                  "a warning")
       ->capture_default_str();
-  app.add_option("--population-tolerance", p.population_tolerance,
+  app.add_option("--population-tolerance", cfg.params.population_tolerance,
                  "Converged when at most this fraction of a level's particles wants to split or die")
       ->capture_default_str();
-  app.add_flag("--no-surfaces", no_surfaces, "Stop after the curves (points and curves only)");
-  app.add_flag("--no-junction-repair", no_repair,
+  app.add_flag("--no-surfaces", cfg.no_surfaces, "Stop after the curves (points and curves only)");
+  app.add_flag("--no-junction-repair", cfg.no_repair,
                "Keep surface particles of two interfaces sharing a material that come closer than h/4 (by "
                "default such a pair becomes one particle on their triple junction, where the curve level "
                "left a gap)");
-  app.add_option("-o,--output", output, "Output point set (.ply .vtp .vtk), world units")->required();
+  app.add_option("-o,--output", cfg.output, "Output point set (.ply .vtp .vtk), world units")->required();
 
-  pm::add_frame_option(app, frame);
+  pm::add_frame_option(app, cfg.frame);
 }
 
 void run_multiparticles(MultiParticlesRun& cfg, const CommonFlags& flags) {

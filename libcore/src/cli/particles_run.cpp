@@ -85,135 +85,113 @@ pm::Mesh to_mesh(const pm::ParticleResult& r) {
 }  // namespace
 
 void add_particles_options(CLI::App& app, ParticlesRun& cfg) {
-  [[maybe_unused]] auto& implicit = cfg.implicit;
-  [[maybe_unused]] auto& input = cfg.input;
-  [[maybe_unused]] auto& hp_field = cfg.hp_field;
-  [[maybe_unused]] auto& sizing_path = cfg.sizing_path;
-  [[maybe_unused]] auto& seeds_path = cfg.seeds_path;
-  [[maybe_unused]] auto& output = cfg.output;
-  [[maybe_unused]] auto& kernel = cfg.kernel;
-  [[maybe_unused]] auto& energy = cfg.energy;
-  [[maybe_unused]] auto& p = cfg.params;
-  [[maybe_unused]] auto& coarse = cfg.coarse;
-  [[maybe_unused]] auto& scenario = cfg.scenario;
-  [[maybe_unused]] auto& iso_opt = cfg.iso_opt;
-  [[maybe_unused]] auto& spacing = cfg.spacing;
-  [[maybe_unused]] auto& density = cfg.density;
-  [[maybe_unused]] auto& lattice = cfg.lattice;
-  [[maybe_unused]] auto& tol_opt = cfg.tol_opt;
-  [[maybe_unused]] auto& iters_opt = cfg.iters_opt;
-  [[maybe_unused]] auto& ctf = cfg.ctf;
-  [[maybe_unused]] auto& volume = cfg.volume;
-  [[maybe_unused]] auto& vr = cfg.vr;
-  [[maybe_unused]] auto& mo = cfg.materials;
-  [[maybe_unused]] auto& frame = cfg.frame;
-
-  app.add_option("--implicit", implicit, "Analytic surface: " + pm::implicit_help());
-  app.add_option("-i,--input", input,
+  app.add_option("--implicit", cfg.implicit, "Analytic surface: " + pm::implicit_help());
+  app.add_option("-i,--input", cfg.input,
                  "Volume to sample (.nrrd .nhdr .vdb .mha .nii .inr), geometry from its "
                  "header");
-  app.add_option("--field", hp_field,
+  app.add_option("--field", cfg.hp_field,
                  "Chapter 4: a Nektar++ field FILE.fld:VARIABLE on the mesh -i MESH.xml (straight-sided tets "
                  "and hexes); particles live in each element's reference space, are projected by Newton on the "
                  "element polynomial (|u - iso| <= 1e-12) and cross element faces. Output: .ply with double x y z "
                  "(mesh units), nx ny nz, element (Nektar++ id), xi1 xi2 xi3, residual |u - iso|, energy, spacing");
-  app.add_option("--scenario", scenario,
+  app.add_option("--scenario", cfg.scenario,
                  "Chapter 4 scenario built in code (no -i): teardrop = sphere |u - c|^2 = iso (default 0.16) "
                  "in the reference space of 8 quadratic B-spline elements mapped to a teardrop (world height "
                  "2); hex8 = x^8 + y^8 + z^8 = iso (default 0.5) in one hexahedron [-1,1]^3. Output as with "
                  "--field")
       ->check(CLI::IsMember({"teardrop", "hex8"}));
-  iso_opt = app.add_option("--iso", p.iso, "Isovalue (volume: strictly between its min and max voxel)")
-                ->capture_default_str();
-  spacing = app.add_option("--spacing", p.spacing,
-                           "Spacing s between particles on flat parts, world units (from the volume "
-                           "header); required unless --sizing");
-  density = app.add_option("--density", p.density,
-                           "Curvature adaptivity rho, particles per radian: local spacing "
-                           "s/(1 + rho s C/(2 pi)), C = curvedness; 0 = uniform")
-                ->capture_default_str();
-  app.add_option("--alpha-cap", p.alpha_cap, "With --density: local spacing never below s / CAP")
+  cfg.iso_opt = app.add_option("--iso", cfg.params.iso, "Isovalue (volume: strictly between its min and max voxel)")
+                    ->capture_default_str();
+  cfg.spacing = app.add_option("--spacing", cfg.params.spacing,
+                               "Spacing s between particles on flat parts, world units (from the volume "
+                               "header); required unless --sizing");
+  cfg.density = app.add_option("--density", cfg.params.density,
+                               "Curvature adaptivity rho, particles per radian: local spacing "
+                               "s/(1 + rho s C/(2 pi)), C = curvedness; 0 = uniform")
+                    ->capture_default_str();
+  app.add_option("--alpha-cap", cfg.params.alpha_cap, "With --density: local spacing never below s / CAP")
       ->capture_default_str();
-  app.add_option("--sizing", sizing_path,
+  app.add_option("--sizing", cfg.sizing_path,
                  "Sizing field volume h (world units, > 0, trilinear) instead of "
                  "--spacing/--density; must cover the surface");
-  app.add_option("--init", seeds_path,
+  app.add_option("--init", cfg.seeds_path,
                  "Seed points (PLY vertices, world units) instead of random points, e.g. "
                  "marching-cubes vertices so that every component is seeded");
-  app.add_option("--init-count", p.init_count, "Random initial points in the field's domain")->capture_default_str();
-  lattice = app.add_flag("--lattice-init,!--no-lattice-init", p.init_lattice,
-                         "Without --init: start from the crossings of the surface with a lattice of "
-                         "step 1.15 x the starting spacing instead of --init-count random points "
-                         "(default: on for volumes, off for --implicit)");
-  app.add_option("--count", p.count,
+  app.add_option("--init-count", cfg.params.init_count, "Random initial points in the field's domain")
+      ->capture_default_str();
+  cfg.lattice = app.add_flag("--lattice-init,!--no-lattice-init", cfg.params.init_lattice,
+                             "Without --init: start from the crossings of the surface with a lattice of "
+                             "step 1.15 x the starting spacing instead of --init-count random points "
+                             "(default: on for volumes, off for --implicit)");
+  app.add_option("--count", cfg.params.count,
                  "Keep exactly N particles, scaling the spacing (or h) instead of "
                  "splitting/deleting; --spacing is the starting value");
-  app.add_option("--kernel", kernel,
+  app.add_option("--kernel", cfg.kernel,
                  "Volume reconstruction: bspline (C2, approximating), catmull-rom "
                  "(interpolating) or mix (value Catmull-Rom, derivatives B-spline)")
       ->check(CLI::IsMember({"bspline", "catmull-rom", "mix"}))
       ->capture_default_str();
-  app.add_option("--energy", energy, "Pair energy: cotangent or radial")
+  app.add_option("--energy", cfg.energy, "Pair energy: cotangent or radial")
       ->check(CLI::IsMember({"cotangent", "radial"}))
       ->capture_default_str();
-  tol_opt = app.add_option("--tolerance", p.tolerance,
-                           "Converged when the system energy drops by less than this "
-                           "fraction in one iteration")
-                ->capture_default_str();
-  app.add_option("--population-tolerance", p.population_tolerance,
+  cfg.tol_opt = app.add_option("--tolerance", cfg.params.tolerance,
+                               "Converged when the system energy drops by less than this "
+                               "fraction in one iteration")
+                    ->capture_default_str();
+  app.add_option("--population-tolerance", cfg.params.population_tolerance,
                  "Stop when converged and at most this fraction of particles wants to split or die (0 = none)")
       ->capture_default_str();
-  app.add_flag("--population,!--no-population", p.population_control,
+  app.add_flag("--population,!--no-population", cfg.params.population_control,
                "Population control: split/delete particles towards the ideal energy (--no-population keeps "
                "the initial particles, e.g. --init-count N with --no-lattice-init)")
       ->capture_default_str();
-  iters_opt = app.add_option("--max-iters", p.max_iters,
-                             "Iteration limit per coarse-to-fine level (not converging is a "
-                             "warning)")
-                  ->capture_default_str();
-  ctf = app.add_flag("--coarse-to-fine,!--no-coarse-to-fine", coarse,
-                     "Converge with spacings x 2^k, split each particle into 4, halve, repeat down to "
-                     "the requested spacing (default: on for volumes, off for --implicit and --field)");
-  app.add_option("--coarse-start", p.coarse_start,
+  cfg.iters_opt = app.add_option("--max-iters", cfg.params.max_iters,
+                                 "Iteration limit per coarse-to-fine level (not converging is a "
+                                 "warning)")
+                      ->capture_default_str();
+  cfg.ctf = app.add_flag("--coarse-to-fine,!--no-coarse-to-fine", cfg.coarse,
+                         "Converge with spacings x 2^k, split each particle into 4, halve, repeat down to "
+                         "the requested spacing (default: on for volumes, off for --implicit and --field)");
+  app.add_option("--coarse-start", cfg.params.coarse_start,
                  "Coarsest spacing, world units (0 = 4 voxel widths / "
                  "field resolutions)")
       ->capture_default_str();
-  app.add_option("--thin-seeds", p.seed_thinning,
+  app.add_option("--thin-seeds", cfg.params.seed_thinning,
                  "With --init: drop seeds closer than this fraction of the starting local spacing to a kept "
                  "seed before relaxing (0 = keep all; every seed still anchors its component)")
       ->check(CLI::Range(0.0, 1.99))
       ->capture_default_str();
-  app.add_option("--settle", p.settled_move,
+  app.add_option("--settle", cfg.params.settled_move,
                  "Skip updating a particle while it and its neighbours move less than this fraction of its "
                  "spacing per iteration, re-checking it every 8 iterations (0 = off)")
       ->check(CLI::Range(0.0, 0.99))
       ->capture_default_str();
-  app.add_flag("--quads", p.quads,
+  app.add_flag("--quads", cfg.params.quads,
                "Quad packing (Chapter 7): two particle types, like pairs √2 farther apart than unlike ones, "
                "settling towards a checkerboard on a square lattice with unlike neighbours --spacing apart; "
                "writes a vertex property `type` (0/1) for quadmesh");
-  app.add_flag("--volume", volume,
+  app.add_flag("--volume", cfg.volume,
                "Chapter 7 volume packing: free particles inside the material side of iso "
                "(--inside; or inside every "
                "material of --materials), 12 ideal neighbours, repelled by the fixed "
                "vertices of --fixed; spacing from --sizing (e.g. gradlimit --inward) or "
                "--spacing. Output: x y z, spacing, label");
-  app.add_option("--fixed", vr.fixed,
+  app.add_option("--fixed", cfg.vr.fixed,
                  "With --volume: the final surface or interface mesh (.ply from tetlabel); "
                  "its vertices stay fixed and bound the packing");
-  app.add_option("--inside", vr.inside,
+  app.add_option("--inside", cfg.vr.inside,
                  "With --volume -i/--implicit: which side is the material: below (F < iso, distance fields), "
                  "above (F > iso, masks, CT) or auto (the side the domain's corners are not on)")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "below", "above"}));
-  pm::add_material_options(app, mo, false, "--material-kernel");
-  app.add_option("--outside", vr.outside,
+  pm::add_material_options(app, cfg.materials, false, "--material-kernel");
+  app.add_option("--outside", cfg.vr.outside,
                  "With --volume --materials: the label not packed (auto = the "
                  "material touching the volume's border)")
       ->capture_default_str();
-  app.add_option("-o,--output", output, "Output point set (.ply .vtp .vtk), world units")->required();
+  app.add_option("-o,--output", cfg.output, "Output point set (.ply .vtp .vtk), world units")->required();
 
-  pm::add_frame_option(app, frame);
+  pm::add_frame_option(app, cfg.frame);
 }
 
 void run_particles(ParticlesRun& cfg, const CommonFlags& flags) {

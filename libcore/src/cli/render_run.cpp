@@ -16,6 +16,17 @@
 
 namespace pm {
 
+namespace {
+
+// The camera and drawing parameters every render records in its stats.
+Json view_parameters(const RenderParams& p) {
+  return {{"size", {p.width, p.height}}, {"azimuth_deg", p.azimuth_deg}, {"elevation_deg", p.elevation_deg},
+          {"edges", p.edges},           {"up", p.up},                   {"legend", p.legend},
+          {"clip", p.clip}};
+}
+
+}  // namespace
+
 void add_render_options(CLI::App& app, RenderRun& r) {
   app.add_option("input", r.input,
                  "Point set or mesh (.ply .vtk .mesh .off .obj .stl) or tetrahedral mesh (.mesh .vtu .vtk .msh)")
@@ -70,13 +81,7 @@ void run_render(RenderRun& r) {
     write_png(img, out);
     auto& s = stats();
     s["inputs"] = {in};
-    s["parameters"] = {{"size", {p.width, p.height}},
-                       {"azimuth_deg", p.azimuth_deg},
-                       {"elevation_deg", p.elevation_deg},
-                       {"edges", p.edges},
-                       {"up", p.up},
-                       {"legend", p.legend},
-                       {"clip", p.clip}};
+    s["parameters"] = view_parameters(p);
     s["counts"] = {{"vertices", t.vertices.size()}, {"tetrahedra", t.tets.size()}};
     return;
   }
@@ -111,16 +116,10 @@ void run_render(RenderRun& r) {
   write_png(img, out);
   auto& s = stats();
   s["inputs"] = {in};
-  s["parameters"] = {{"size", {p.width, p.height}},
-                     {"azimuth_deg", p.azimuth_deg},
-                     {"elevation_deg", p.elevation_deg},
-                     {"mode", p.mode},
-                     {"color_by", p.color_by},
-                     {"radius", p.radius},
-                     {"edges", p.edges},
-                     {"up", p.up},
-                     {"legend", p.legend},
-                     {"clip", p.clip}};
+  s["parameters"] = view_parameters(p);
+  s["parameters"]["mode"] = p.mode;
+  s["parameters"]["color_by"] = p.color_by;
+  s["parameters"]["radius"] = p.radius;
   s["counts"] = {{"vertices", m.vertices.size()}, {"faces", m.faces.size()}};
 }
 

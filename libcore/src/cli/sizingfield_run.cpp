@@ -16,30 +16,23 @@
 namespace pm {
 
 void add_sizingfield_options(CLI::App& app, SizingFieldRun& cfg) {
-  [[maybe_unused]] auto& sdfs = cfg.sdfs;
-  [[maybe_unused]] auto& mas = cfg.mas;
-  [[maybe_unused]] auto& out = cfg.output;
-  [[maybe_unused]] auto& lfs_out = cfg.lfs_out;
-  [[maybe_unused]] auto& p = cfg.params;
-  [[maybe_unused]] auto& no_contract = cfg.no_contract;
-  [[maybe_unused]] auto& at_node = cfg.at_node;
-
-  app.add_option("--sdf", sdfs, "Signed distance volume (negative inside); repeat per surface")->required();
-  app.add_option("--ma", mas, "Medial-axis points of that surface (.ply from medialaxis); one per --sdf")->required();
-  app.add_option("-o,--output", out, "Sizing field volume (float, world units, 0 = unknown)")->required();
-  app.add_option("--eps", p.eps, "epsilon of the eps-sampling (> 0); h0 = 2 eps min(LFS, 1/|k|)")
+  app.add_option("--sdf", cfg.sdfs, "Signed distance volume (negative inside); repeat per surface")->required();
+  app.add_option("--ma", cfg.mas, "Medial-axis points of that surface (.ply from medialaxis); one per --sdf")
+      ->required();
+  app.add_option("-o,--output", cfg.output, "Sizing field volume (float, world units, 0 = unknown)")->required();
+  app.add_option("--eps", cfg.params.eps, "epsilon of the eps-sampling (> 0); h0 = 2 eps min(LFS, 1/|k|)")
       ->capture_default_str();
-  app.add_option("--hmin", p.hmin, "Lower bound on h, world units (Chapter 6: the tightening radius)")
+  app.add_option("--hmin", cfg.params.hmin, "Lower bound on h, world units (Chapter 6: the tightening radius)")
       ->capture_default_str();
-  app.add_option("--band", p.band, "Half-width of the band of known nodes around the surface, voxels")
+  app.add_option("--band", cfg.params.band, "Half-width of the band of known nodes around the surface, voxels")
       ->capture_default_str();
-  app.add_option("--contraction", p.contraction, "Distance contraction g (>= 1): h is divided by it")
+  app.add_option("--contraction", cfg.params.contraction, "Distance contraction g (>= 1): h is divided by it")
       ->capture_default_str();
-  app.add_flag("--no-contract", no_contract, "Do not divide by the contraction g");
-  app.add_flag("--at-node", at_node,
+  app.add_flag("--no-contract", cfg.no_contract, "Do not divide by the contraction g");
+  app.add_flag("--at-node", cfg.at_node,
                "Evaluate LFS and curvature at the grid node, not at its closest "
                "surface point");
-  app.add_option("--lfs", lfs_out, "Also write the local feature size volume (world units, 0 = unknown)");
+  app.add_option("--lfs", cfg.lfs_out, "Also write the local feature size volume (world units, 0 = unknown)");
 }
 
 void run_sizingfield(SizingFieldRun& cfg, const CommonFlags& flags) {

@@ -109,33 +109,19 @@ void run_materials(pm::Mesh pts, const std::string& points, const pm::MaterialOp
 }  // namespace
 
 void add_tetlabel_options(CLI::App& app, TetLabelRun& cfg) {
-  [[maybe_unused]] auto& points = cfg.points;
-  [[maybe_unused]] auto& out = cfg.output;
-  [[maybe_unused]] auto& tets = cfg.tets;
-  [[maybe_unused]] auto& inside = cfg.inside;
-  [[maybe_unused]] auto& outside = cfg.outside;
-  [[maybe_unused]] auto& surfaces = cfg.surfaces;
-  [[maybe_unused]] auto& tets_list = cfg.tets_list;
-  [[maybe_unused]] auto& mo = cfg.materials;
-  [[maybe_unused]] auto& repair = cfg.repair;
-  [[maybe_unused]] auto& improve = cfg.improve;
-  [[maybe_unused]] auto& fo = cfg.fo;
-  [[maybe_unused]] auto& cr = cfg.cr;
-  [[maybe_unused]] auto& frame = cfg.frame;
-
-  app.add_option("points", points, "Particles (PLY, OFF, OBJ, STL vertices), world units")->required();
-  pm::add_field_options(app, fo);
-  app.add_option("-o,--output", out,
+  app.add_option("points", cfg.points, "Particles (PLY, OFF, OBJ, STL vertices), world units")->required();
+  pm::add_field_options(app, cfg.fo);
+  app.add_option("-o,--output", cfg.output,
                  "Surface mesh to write (.ply .vtp .vtk .mesh .obj .off .stl; label_a/label_b kept by .ply .vtp .vtk "
                  "and as MEDIT triangle references); required, except with --conform, which takes none");
-  app.add_option("--inside", inside,
+  app.add_option("--inside", cfg.inside,
                  "Which side is the material: below (F < iso, distance fields), above (F > iso, masks, CT "
                  "intensities) or auto (the side the domain's corners are not on)")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "below", "above"}));
-  app.add_flag("--repair,!--no-repair", repair,
+  app.add_flag("--repair,!--no-repair", cfg.repair,
                "Relabel tetrahedra at pinched vertices so the surface is a manifold (default on)");
-  app.add_option("--improve", improve,
+  app.add_option("--improve", cfg.improve,
                  "Rounds of surface improvement after meshing (valence and quality edge flips, then "
                  "tangential smoothing with every vertex projected back onto F = iso, or with --materials "
                  "onto its interface f_a = f_b while junction curves and corners stay; topology kept, no "
@@ -144,22 +130,22 @@ void add_tetlabel_options(CLI::App& app, TetLabelRun& cfg) {
                  "warning, when the Delaunay surface is not a closed manifold")
       ->capture_default_str()
       ->check(CLI::Range(0, 100));
-  app.add_option("--tets", tets_list,
+  app.add_option("--tets", cfg.tets_list,
                  "Also write the inside tetrahedra, by extension: .mesh (MEDIT, material references and boundary "
                  "triangles), .vtu or .vtk (VTK, cell array material), .msh (Gmsh 4.1, one physical group per material "
                  "and per interface); with --conform it may be given several times, one file per format")
       ->expected(1)
       ->take_all();
-  pm::add_material_options(app, mo, false, "")->excludes("--input")->excludes("--implicit");
-  app.add_option("--outside", outside,
+  pm::add_material_options(app, cfg.materials, false, "")->excludes("--input")->excludes("--implicit");
+  app.add_option("--outside", cfg.outside,
                  "With --materials: label outside the domain and beyond hull faces (auto = the material "
                  "at most domain corners, e.g. the background)")
       ->capture_default_str();
-  app.add_option("--material-surfaces", surfaces,
+  app.add_option("--material-surfaces", cfg.surfaces,
                  "With --materials: write each material's closed surface (all but the outside label) as "
                  "DIR/material_<label>.ply, or to a pattern with %d, e.g. \"out/m%d.off\"");
-  pm::add_conform_options(app, cr);
-  pm::add_frame_option(app, frame);
+  pm::add_conform_options(app, cfg.cr);
+  pm::add_frame_option(app, cfg.frame);
 }
 
 void run_tetlabel(TetLabelRun& cfg, const CommonFlags& flags, const CLI::App& app) {

@@ -11,46 +11,38 @@
 namespace pm {
 
 void add_tighten_options(CLI::App& app, TightenRun& cfg) {
-  [[maybe_unused]] auto& in = cfg.input;
-  [[maybe_unused]] auto& out = cfg.output;
-  [[maybe_unused]] auto& p = cfg.params;
-  [[maybe_unused]] auto& per_label = cfg.per_label;
-  [[maybe_unused]] auto& radius = cfg.radius;
-  [[maybe_unused]] auto& upsample = cfg.upsample;
-  [[maybe_unused]] auto& gzip = cfg.gzip;
-
-  app.add_option("input", in, "Binary mask volume (label map with --per-label)")->required();
-  app.add_option("output", out,
+  app.add_option("input", cfg.input, "Binary mask volume (label map with --per-label)")->required();
+  app.add_option("output", cfg.output,
                  "Signed distance volume (format by extension); with --per-label a pattern "
                  "where %d becomes each label, e.g. out/sdf_%d.nrrd")
       ->required();
-  app.add_flag("--per-label", per_label,
+  app.add_flag("--per-label", cfg.per_label,
                "Chapter 6: input is a label map; tighten every label (0 included) as its own mask, all on "
                "the input grid (upsampled by --upsample; the border is extended by replicating labels, not "
                "treated as an interface) and write one signed distance per label (negative inside)");
-  app.add_option("-r,--radius", radius,
+  app.add_option("-r,--radius", cfg.radius,
                  "Tightening radius R, world units (> 0); auto = the largest voxel spacing of the input (from "
                  "its header, so anisotropic slices are smoothed), divided by the automatic --upsample K "
                  "on tiny volumes")
       ->capture_default_str();
-  app.add_option("--upsample", upsample,
+  app.add_option("--upsample", cfg.upsample,
                  "Resample the mask K (1-8) times finer first (trilinear), for R below a voxel or so; output "
                  "spacing h/K; auto = 1, or on a volume with fewer than 8 voxels along an axis the smallest K "
                  "giving 16 (at most 8)")
       ->capture_default_str();
-  app.add_option("--iterations", p.max_iterations,
+  app.add_option("--iterations", cfg.params.max_iterations,
                  "Most flow steps; 0 = automatic (until converged, at "
                  "most 20 (R/h)^2 + 100)")
       ->capture_default_str();
-  app.add_option("--tolerance", p.tolerance,
+  app.add_option("--tolerance", cfg.params.tolerance,
                  "Converged when the zero set moves less than this per step, "
                  "voxels")
       ->capture_default_str();
-  app.add_option("--reinit", p.reinit_every,
+  app.add_option("--reinit", cfg.params.reinit_every,
                  "Every N flow steps, re-distance the flowing field if |grad phi| at the zero set is off 1 by > 0.5")
       ->capture_default_str();
-  app.add_flag("--positive-inside", p.positive_inside, "Write positive inside, negative outside (Chapter 6)");
-  app.add_flag("--gzip", gzip,
+  app.add_flag("--positive-inside", cfg.params.positive_inside, "Write positive inside, negative outside (Chapter 6)");
+  app.add_flag("--gzip", cfg.gzip,
                "Compress the output where the format allows (float distances shrink by only "
                "~10% and gzip takes seconds on 256^3; off by default)");
 }

@@ -62,68 +62,50 @@ pm::Json volume_info(const pm::Volume& v, const std::string& path) {
 }  // namespace
 
 void add_volconv_options(CLI::App& app, VolConvRun& cfg) {
-  [[maybe_unused]] auto& in = cfg.input;
-  [[maybe_unused]] auto& out = cfg.output;
-  [[maybe_unused]] auto& labels = cfg.labels;
-  [[maybe_unused]] auto& merge = cfg.merge;
-  [[maybe_unused]] auto& type = cfg.type;
-  [[maybe_unused]] auto& inside = cfg.inside;
-  [[maybe_unused]] auto& distance_iso = cfg.distance_iso;
-  [[maybe_unused]] auto& info = cfg.info;
-  [[maybe_unused]] auto& sdf = cfg.sdf;
-  [[maybe_unused]] auto& allow_nonfinite = cfg.allow_nonfinite;
-  [[maybe_unused]] auto& sp = cfg.sp;
-  [[maybe_unused]] auto& thr = cfg.thr;
-  [[maybe_unused]] auto& dist = cfg.dist;
-  [[maybe_unused]] auto& argmax = cfg.argmax;
-  [[maybe_unused]] auto& pad = cfg.pad;
-  [[maybe_unused]] auto& pad_value = cfg.pad_value;
-  [[maybe_unused]] auto& min_voxels = cfg.min_voxels;
-
-  app.add_option("input", in, "Input volume, or mesh with --sdf")->required();
-  app.add_option("output", out, "Output volume (format by extension)");
-  app.add_flag("--info", info,
+  app.add_option("input", cfg.input, "Input volume, or mesh with --sdf")->required();
+  app.add_option("output", cfg.output, "Output volume (format by extension)");
+  app.add_flag("--info", cfg.info,
                "Print the input's header as JSON on stdout (dims, spacing, origin and "
                "directions in LPS world units, the file's own frame, type, min/max, label "
                "counts for integer volumes)");
-  app.add_flag("--sdf", sdf, "Input is a closed triangle mesh: write its signed distance volume");
-  app.add_option("--voxel", sp.voxel, "With --sdf: voxel size, world units (mesh units)");
-  app.add_option("--band", sp.band,
+  app.add_flag("--sdf", cfg.sdf, "Input is a closed triangle mesh: write its signed distance volume");
+  app.add_option("--voxel", cfg.sp.voxel, "With --sdf: voxel size, world units (mesh units)");
+  app.add_option("--band", cfg.sp.band,
                  "With --sdf: narrow band half-width in voxels; 0 = exact distance in the "
                  "whole box")
       ->capture_default_str();
-  app.add_option("--padding", sp.padding, "With --sdf: voxels of margin around the mesh")->capture_default_str();
-  thr = app.add_option("--threshold", distance_iso,
-                       "Write a uint8 mask (1 = material) of the side of F = ISO given by --inside");
-  dist = app.add_option("--distance", distance_iso,
-                        "Write the signed distance (world units, negative inside) to the level set "
-                        "F = ISO of the input volume (grey values, masks: 0.5)");
-  app.add_option("--inside", inside,
+  app.add_option("--padding", cfg.sp.padding, "With --sdf: voxels of margin around the mesh")->capture_default_str();
+  cfg.thr = app.add_option("--threshold", cfg.distance_iso,
+                           "Write a uint8 mask (1 = material) of the side of F = ISO given by --inside");
+  cfg.dist = app.add_option("--distance", cfg.distance_iso,
+                            "Write the signed distance (world units, negative inside) to the level set "
+                            "F = ISO of the input volume (grey values, masks: 0.5)");
+  app.add_option("--inside", cfg.inside,
                  "With --distance/--threshold: the material is below ISO (distance fields), above (masks, CT) or auto "
                  "(the side the volume's corners are not on)")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "below", "above"}));
-  app.add_option("--labels", labels, "Write a uint8 mask (1/0) of these labels, e.g. \"2,41\" or \"2-5\"");
-  app.add_option("--merge", merge, "Relabel before anything else: \"1,2:1 3,4:2\" maps 1,2 to 1 and 3,4 to 2");
-  app.add_flag("--argmax", argmax,
+  app.add_option("--labels", cfg.labels, "Write a uint8 mask (1/0) of these labels, e.g. \"2,41\" or \"2-5\"");
+  app.add_option("--merge", cfg.merge, "Relabel before anything else: \"1,2:1 3,4:2\" maps 1,2 to 1 and 3,4 to 2");
+  app.add_flag("--argmax", cfg.argmax,
                "Input is a material set \"L1=a.nrrd,L2=+b.nrrd,...\" (see tetlabel --materials; +: positive "
                "inside): write the label map of the material with the largest indicator at each voxel node "
                "(int32, the first volume's grid)");
-  app.add_option("--pad", pad,
+  app.add_option("--pad", cfg.pad,
                  "Last (before --type): grow the grid by N voxels on every side (the origin "
                  "moves so every voxel keeps its world position), e.g. so that materials touching the "
                  "volume border get a surface there")
       ->check(CLI::Range(0, 4096));
-  app.add_option("--pad-value", pad_value,
+  app.add_option("--pad-value", cfg.pad_value,
                  "Value of the padding voxels: a number, or \"new\" = one more than the largest label "
                  "(a new outside material for a label map)")
       ->capture_default_str();
-  app.add_option("--min-voxels", min_voxels,
+  app.add_option("--min-voxels", cfg.min_voxels,
                  "After --merge: drop labels with fewer than N voxels; their voxels join the most common "
                  "neighbouring label (0 = keep all)")
       ->capture_default_str();
-  app.add_flag("--allow-nonfinite", allow_nonfinite, "Copy NaN/Inf voxels instead of refusing the input");
-  app.add_option("--type", type, "Convert the voxel type: uint8 int8 uint16 int16 uint32 int32 float double");
+  app.add_flag("--allow-nonfinite", cfg.allow_nonfinite, "Copy NaN/Inf voxels instead of refusing the input");
+  app.add_option("--type", cfg.type, "Convert the voxel type: uint8 int8 uint16 int16 uint32 int32 float double");
 }
 
 void run_volconv(VolConvRun& cfg, const CommonFlags& flags, const CLI::App& app) {
