@@ -258,4 +258,6 @@ set_tests_properties(cli.workflow.cohort PROPERTIES TIMEOUT 1500 SKIP_RETURN_COD
 # == quadmesh (issue 20): typed particles -> triangles -> quads, read back by meshio
 pm_cli_script(quadmesh.sphere quadmesh_test.sh)
 set_tests_properties(cli.quadmesh.sphere PROPERTIES SKIP_RETURN_CODE 77)
+pm_cli_script(quadmesh.knot quadmesh_knot_test.sh)
+set_tests_properties(cli.quadmesh.knot PROPERTIES TIMEOUT 600)
 pm_cli_test(quadmesh.help_example "Example:.*particles .*--quads" $<TARGET_FILE:quadmesh> --help)
