@@ -6,6 +6,7 @@
 #include <CGAL/Surface_mesh.h>
 
 #include <algorithm>
+#include <array>
 #include <iterator>
 
 #include "pm/mesh/meshstats.h"
@@ -20,7 +21,7 @@ bool self_intersecting_faces(const Mesh& m, std::vector<std::pair<int, int>>& ou
   std::vector<K::Point_3> pts;
   pts.reserve(m.vertices.size());
   for (const Vec3& v : m.vertices) pts.emplace_back(v.x, v.y, v.z);
-  std::vector<std::vector<std::size_t>> polys;
+  std::vector<std::array<std::size_t, 3>> polys;  // fixed-size polygons: no allocation per face
   polys.reserve(m.faces.size());
   for (const auto& f : m.faces) polys.push_back({std::size_t(f[0]), std::size_t(f[1]), std::size_t(f[2])});
   if (!PMP::is_polygon_soup_a_polygon_mesh(polys)) return false;

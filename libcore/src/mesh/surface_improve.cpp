@@ -83,14 +83,17 @@ class Improver {
   // Half-edge h = 3f + k runs from faces[f][k] to faces[f][k+1].
   void build_opposites() {
     const std::size_t nf = m_.faces.size(), nv = m_.vertices.size();
-    std::unordered_map<std::uint64_t, std::vector<int>> by_edge;  // undirected edge -> half-edges
-    by_edge.reserve(2 * nf);
+    // Half-edges grouped by undirected edge: sorted (key, half-edge) pairs,
+    // no allocation per edge.
+    halves_.clear();
+    halves_.reserve(3 * nf);
     for (std::size_t f = 0; f < nf; ++f)
       for (int k = 0; k < 3; ++k)
-        by_edge[undirected(m_.faces[f][k], m_.faces[f][(k + 1) % 3])].push_back(int(3 * f + k));
+        halves_.push_back({undirected(m_.faces[f][k], m_.faces[f][(k + 1) % 3]), int(3 * f + k)});
+    std::sort(halves_.begin(), halves_.end());
     opp_.assign(3 * nf, -1);
     edges_.clear();
-    edges_.reserve(by_edge.size());
+    edges_.reserve(halves_.size() / 2 + 1);
     valence_.assign(nv, 0);
     fixed_.assign(nv, 0);
     curve_nb_.assign(nv, {-1, -1});
@@ -101,7 +104,11 @@ class Improver {
         if (vgroup[v] == -1) vgroup[v] = sh_.group[f];
         else if (vgroup[v] != sh_.group[f]) fixed_[v] = 1;  // on a junction between sheets
       }
-    for (const auto& [key, hs] : by_edge) {
+    std::vector<int> hs;
+    for (std::size_t i = 0; i < halves_.size();) {
+      const std::uint64_t key = halves_[i].first;
+      hs.clear();
+      for (; i < halves_.size() && halves_[i].first == key; ++i) hs.push_back(halves_[i].second);
       edges_.insert(key);
       const int a = int(key & 0xffffffffu), b = int(key >> 32);
       ++valence_[a];
@@ -357,6 +364,7 @@ class Improver {
   double mean_edge_ = 1, tol_ = 0;
   std::vector<int> opp_;
   std::unordered_set<std::uint64_t> edges_;
+  std::vector<std::pair<std::uint64_t, int>> halves_;  // build_opposites' scratch
   std::vector<int> valence_;
   std::vector<char> fixed_;  // junction vertices (several sheets, or an edge with != 2 faces)
   std::vector<std::array<int, 2>> curve_nb_;  // the other ends of a vertex's first two junction edges
