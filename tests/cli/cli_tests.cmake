@@ -52,7 +52,7 @@ pm_cli_test(particles.no_spacing "particles: usage error: --spacing S \\(world u
 pm_cli_test(particles.spacing_zero "particles: usage error: spacing must be > 0 world units, got 0" ${PT} --implicit sphere --spacing 0 -o /tmp/pm_p.ply)
 pm_cli_test(particles.spacing_negative "particles: usage error: spacing must be > 0 world units, got -1" ${PT} --implicit sphere --spacing -1 -o /tmp/pm_p.ply)
 pm_cli_test(particles.spacing_huge "particles: usage error: spacing 100 is larger than the domain's diagonal" ${PT} --implicit sphere --spacing 100 -o /tmp/pm_p.ply)
-pm_cli_test(particles.iso_outside_range "particles: error: isovalue 3 is outside the value range \\[0, 1\\] of .*onevoxel.nrrd" ${PT} -i ${PTD}/onevoxel.nrrd --iso 3 --spacing 0.5 -o /tmp/pm_p.ply)
+pm_cli_test(particles.iso_outside_range "particles: error: .*onevoxel.nrrd.: no surface: the isovalue 3 is outside the value range \\[0, 1\\]; expected lo < iso < hi" ${PT} -i ${PTD}/onevoxel.nrrd --iso 3 --spacing 0.5 -o /tmp/pm_p.ply)
 # The B-spline reconstruction of a single voxel of 1 peaks at (2/3)^3 = 0.30 < 0.5.
 pm_cli_test(particles.no_surface_volume "particles: error: no surface found: none of the 500 initial points reached F = 0.5" ${PT} -i ${PTD}/onevoxel.nrrd --iso 0.5 --spacing 0.5 -o /tmp/pm_p.ply)
 pm_cli_test(particles.no_surface_implicit "particles: error: no surface found" ${PT} --implicit sphere --iso -5 --spacing 0.3 -o /tmp/pm_p.ply)

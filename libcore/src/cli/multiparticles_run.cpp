@@ -10,6 +10,7 @@
 #include "pm/base/stats.h"
 #include "pm/cli/frame_option.h"
 #include "pm/cli/material_options.h"
+#include "pm/cli/energy_option.h"
 #include "pm/cli/run_tool.h"
 #include "pm/field/sizing.h"
 #include "pm/io/mesh.h"
@@ -69,9 +70,7 @@ void add_multiparticles_options(CLI::App& app, MultiParticlesRun& cfg) {
   app.add_option("--sizing", cfg.sizing_path,
                  "Sizing field volume h (world units, > 0, trilinear), e.g. the "
                  "minimum over the materials; must cover the junctions");
-  app.add_option("--energy", cfg.energy, "Pair energy: cotangent or radial")
-      ->check(CLI::IsMember({"cotangent", "radial"}))
-      ->capture_default_str();
+  pm::add_energy_option(app, cfg.energy);
   app.add_option("--tolerance", cfg.params.tolerance,
                  "A level has converged when the energy drops by less than this "
                  "fraction in one iteration")
@@ -113,7 +112,7 @@ void run_multiparticles(MultiParticlesRun& cfg, const CommonFlags& flags) {
   if (!sizing_path.empty() && spacing->count()) throw pm::UsageError("give --spacing or --sizing, not both");
   if (!seeds_path.empty() && !labels_path.empty()) throw pm::UsageError("give --seeds or --labels, not both");
   if (decimate < 1) throw pm::UsageError("--decimate must be >= 1, got " + std::to_string(decimate));
-  p.energy = energy == "radial" ? pm::ParticleEnergy::radial : pm::ParticleEnergy::cotangent;
+  p.energy = pm::energy_named(energy);
   p.surfaces = !no_surfaces;
   p.repair_junctions = !no_repair;
   p.seed = flags.seed;

@@ -13,6 +13,7 @@
 #include "pm/cli/field_options.h"
 #include "pm/cli/frame_option.h"
 #include "pm/cli/reference_particles.h"
+#include "pm/cli/energy_option.h"
 #include "pm/cli/run_tool.h"
 #include "pm/cli/volume_particles.h"
 #include "pm/field/implicits.h"
@@ -26,24 +27,12 @@
 namespace pm {
 namespace {
 
-std::string num(double v) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%g", v);
-  return b;
-}
-
 // The field to sample: an analytic implicit or a reconstructed volume whose
-// value range must straddle the isovalue.
+// value range must straddle the isovalue (pm::load_field).
 std::unique_ptr<pm::ScalarField> load_field(const std::string& implicit, const std::string& input,
                                             const std::string& kernel, double iso) {
-  if (!implicit.empty()) return pm::make_implicit(implicit);
   pm::ScopedStage stage("read");
-  const pm::Volume v = pm::read_volume(input);
-  const pm::ValueRange r = pm::value_range(v);
-  if (!(iso > r.lo && iso < r.hi))
-    throw pm::InputError("isovalue " + num(iso) + " is outside the value range [" + num(r.lo) + ", " + num(r.hi) +
-                         "] of " + pm::quote(input) + "; expected min < iso < max");
-  return std::make_unique<pm::VolumeField>(v, pm::kernel_params(kernel), input);
+  return std::move(pm::load_field(pm::FieldOptions{input, implicit, kernel, iso}).field);
 }
 
 void record_stats(const pm::ParticleResult& r) {
@@ -131,9 +120,7 @@ void add_particles_options(CLI::App& app, ParticlesRun& cfg) {
                  "(interpolating) or mix (value Catmull-Rom, derivatives B-spline)")
       ->check(CLI::IsMember({"bspline", "catmull-rom", "mix"}))
       ->capture_default_str();
-  app.add_option("--energy", cfg.energy, "Pair energy: cotangent or radial")
-      ->check(CLI::IsMember({"cotangent", "radial"}))
-      ->capture_default_str();
+  pm::add_energy_option(app, cfg.energy);
   cfg.tol_opt = app.add_option("--tolerance", cfg.params.tolerance,
                                "Converged when the system energy drops by less than this "
                                "fraction in one iteration")
@@ -220,7 +207,7 @@ void run_particles(ParticlesRun& cfg, const CommonFlags& flags) {
   [[maybe_unused]] auto& frame = cfg.frame;
   pm::check_output_path(output, pm::OutputKind::points, "--output");
   p.seed = flags.seed;
-  p.energy = energy == "radial" ? pm::ParticleEnergy::radial : pm::ParticleEnergy::cotangent;
+  p.energy = pm::energy_named(energy);
   if (p.quads && (volume || !scenario.empty() || !hp_field.empty()))
     throw pm::UsageError("--quads samples a surface: not with --volume, --scenario or --field");
   if (p.quads && !tol_opt->count()) p.tolerance = pm::engine_constants::kQuadTolerance;
@@ -275,7 +262,7 @@ void run_particles(ParticlesRun& cfg, const CommonFlags& flags) {
   if (sizing_path.empty() && !spacing->count()) throw pm::UsageError("--spacing S (world units) is required");
   if (!sizing_path.empty() && spacing->count()) throw pm::UsageError("give --spacing or --sizing, not both");
   if (!sizing_path.empty() && density->count()) throw pm::UsageError("--density does not apply with --sizing");
-  p.energy = energy == "radial" ? pm::ParticleEnergy::radial : pm::ParticleEnergy::cotangent;
+  p.energy = pm::energy_named(energy);
   p.coarse_to_fine = ctf->count() ? coarse : !input.empty();
   if (!lattice->count()) p.init_lattice = !input.empty();
   p.seed = flags.seed;
