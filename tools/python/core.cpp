@@ -23,6 +23,7 @@
 #include "pm/base/error.h"
 #include "pm/base/log.h"
 #include "pm/base/volume.h"
+#include "pm/cli/energy_option.h"
 #include "pm/field/sizing.h"
 #include "pm/field/volume_field.h"
 #include "pm/io/volume_io.h"
@@ -418,7 +419,7 @@ py::dict sample(const py::array& array, const py::object& origin, const py::obje
   p.spacing = spacing.value_or(0);
   p.density = density;
   p.alpha_cap = alpha_cap;
-  p.energy = energy == "radial" ? pm::ParticleEnergy::radial : pm::ParticleEnergy::cotangent;
+  p.energy = pm::energy_named(energy);  // checked above with a Python-style message
   p.tolerance = tolerance;
   p.population_tolerance = population_tolerance;
   p.population_control = population;
