@@ -99,6 +99,35 @@ TEST(QuadMesh, LeftoversPairAcrossUnlikeEdgesOrStay) {
   EXPECT_GE(s.triangles_left, r.triangles_left);
 }
 
+// Four triangles in a strip A - B - C - D (each shares an edge with the
+// next), all vertices of one type (every edge a like edge). B and C form
+// the unit square, the best quad, so the greedy matching takes it first and
+// leaves A and D alone; the augmenting path A - B = C - D re-pairs them into
+// two quads (A, B) and (C, D). Their worst corner is B's 45° at (1, 1), so
+// they may be used with augment_max_deviation 60 but not with the default 40.
+TEST(QuadMesh, AugmentingPathsPairWhatTheGreedyLeft) {
+  Mesh m;
+  m.vertices = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0.5, -0.6, 0}, {0.5, 1.6, 0}};
+  m.faces = {{0, 4, 1}, {0, 1, 2}, {0, 2, 3}, {3, 2, 5}};  // A, B, C, D (counter-clockwise)
+  const std::vector<int> type(m.vertices.size(), 0);
+  QuadParams p;
+  p.augment_depth = 0;
+  const QuadResult greedy = quad_dominant(m, type, p);
+  EXPECT_EQ(greedy.mesh.quad_count(), 1u);
+  EXPECT_EQ(greedy.triangles_left, 2u);
+  p.augment_depth = 3;
+  EXPECT_EQ(quad_dominant(m, type, p).augmented, 0u);  // default: corners within 40° only
+  p.augment_max_deviation = 60;
+  const QuadResult r = quad_dominant(m, type, p);
+  EXPECT_EQ(r.augmented, 1u);
+  EXPECT_EQ(r.mesh.quad_count(), 2u);
+  EXPECT_EQ(r.triangles_left, 0u);
+  EXPECT_EQ(r.like_merges + r.leftover_merges, 2u);
+  const QuadQuality q = quad_quality(r.mesh);
+  EXPECT_LE(q.corner_max, 90 + p.max_corner_deviation);
+  EXPECT_GE(q.corner_min, 90 - p.max_corner_deviation);
+}
+
 TEST(QuadMesh, FoldsAreNotMerged) {
   // Two triangles of a tetrahedron meet at 70.5 degrees between faces (a fold of
   // 109.5 degrees between normals): never one quad.

@@ -166,7 +166,7 @@ void run_quads(const QuadRun& r) {
                         {"max_fold", r.params.max_fold},
                         {"pair_leftovers", r.params.pair_leftovers}};
     st["counts"] = {{"triangles_in", s.faces.size()},   {"like_edges", q.like_edges},
-                    {"like_merges", q.like_merges},     {"leftover_merges", q.leftover_merges},
+                    {"like_merges", q.like_merges},     {"leftover_merges", q.leftover_merges}, {"augmenting_paths", q.augmented},
                     {"triangles_left", q.triangles_left}};
   }
   st["quality"] = to_json(qq);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <numeric>
 
 #include "pm/base/error.h"
@@ -65,6 +66,76 @@ struct Candidate {
   }
 };
 
+// Augmenting paths (as in maximum matching) of at most `depth` matched
+// pairs from every triangle left alone: t0 - t1 = t2 - t3 = ... - tk, where
+// "-" is a candidate quad not taken, "=" a quad taken and tk is also alone;
+// flipping the path makes one more quad out of the same candidates (every
+// quad still passes the corner and fold tests, and only candidates with
+// corners within `max_deviation` of 90° are used). Depth-first, candidates in
+// the greedy's order (best quad first), triangles in index order:
+// deterministic. Returns the number of augmentations.
+std::size_t augment(const std::vector<Candidate>& like, const std::vector<Candidate>& other, std::size_t nf,
+                    int depth, double max_deviation, std::vector<int>& partner) {
+  // Candidate partners of each triangle, best first (the lists are sorted).
+  std::vector<std::uint32_t> start(nf + 1, 0), adj;
+  for (const auto* list : {&like, &other})
+    for (const Candidate& c : *list) {
+      if (c.score > max_deviation) continue;
+      ++start[c.t + 1];
+      ++start[c.u + 1];
+    }
+  for (std::size_t f = 0; f < nf; ++f) start[f + 1] += start[f];
+  adj.resize(start[nf]);
+  std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
+  for (const auto* list : {&like, &other})
+    for (const Candidate& c : *list) {
+      if (c.score > max_deviation) continue;
+      adj[fill[c.t]++] = c.u;
+      adj[fill[c.u]++] = c.t;
+    }
+  std::vector<std::uint32_t> seen(nf, 0), path;
+  std::uint32_t stamp = 0;
+  // From free or re-paired triangle a: find b among a's candidates that is
+  // alone (done), or matched to c from which the search goes on.
+  std::function<bool(std::uint32_t, int)> search = [&](std::uint32_t a, int left) -> bool {
+    for (std::uint32_t k = start[a]; k < start[a + 1]; ++k) {
+      const std::uint32_t b = adj[k];
+      if (seen[b] == stamp || int(b) == partner[a]) continue;
+      seen[b] = stamp;
+      if (partner[b] < 0) {
+        path.push_back(a);
+        path.push_back(b);
+        return true;
+      }
+      if (left == 0) continue;
+      const std::uint32_t c = std::uint32_t(partner[b]);
+      if (seen[c] == stamp) continue;
+      seen[c] = stamp;
+      if (search(c, left - 1)) {
+        path.push_back(a);
+        path.push_back(b);
+        return true;
+      }
+    }
+    return false;
+  };
+  std::size_t count = 0;
+  for (std::uint32_t t = 0; t < nf; ++t) {
+    if (partner[t] >= 0 || start[t] == start[t + 1]) continue;
+    ++stamp;
+    seen[t] = stamp;
+    path.clear();
+    if (!search(t, depth)) continue;
+    // path holds pairs (a, b) to match, innermost first.
+    for (std::size_t i = 0; i + 1 < path.size(); i += 2) {
+      partner[path[i]] = int(path[i + 1]);
+      partner[path[i + 1]] = int(path[i]);
+    }
+    ++count;
+  }
+  return count;
+}
+
 }  // namespace
 
 QuadResult quad_dominant(const Mesh& tri, const std::vector<int>& type, const QuadParams& p) {
@@ -126,8 +197,12 @@ QuadResult quad_dominant(const Mesh& tri, const std::vector<int>& type, const Qu
   };
   take(like, r.like_merges);
   if (p.pair_leftovers) take(other, r.leftover_merges);
+  if (p.pair_leftovers && p.augment_depth > 0) {
+    r.augmented = augment(like, other, nf, p.augment_depth, p.augment_max_deviation, partner);
+    if (r.augmented > 0) r.like_merges = r.leftover_merges = 0;  // counted again below: paths re-pair quads
+  }
   r.mesh.vertices = tri.vertices;
-  r.mesh.faces.reserve(nf - r.like_merges - r.leftover_merges);
+  r.mesh.faces.reserve(nf);
   for (std::size_t f = 0; f < nf; ++f) {
     const auto& t = tri.faces[f];
     if (partner[f] < 0) {
@@ -137,6 +212,8 @@ QuadResult quad_dominant(const Mesh& tri, const std::vector<int>& type, const Qu
       std::array<int, 4> q;
       merged(t, tri.faces[std::size_t(partner[f])], q);
       r.mesh.faces.push_back(q);
+      // q = (a, d, b, c): the two triangles shared the edge a-b.
+      if (r.augmented > 0) ++(type[std::size_t(q[0])] == type[std::size_t(q[2])] ? r.like_merges : r.leftover_merges);
     }
   }
   return r;

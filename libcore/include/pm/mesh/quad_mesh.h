@@ -29,6 +29,14 @@ struct QuadParams {
   /// Pair the triangles left after the like-edge merges across unlike edges
   /// too (else they stay triangles).
   bool pair_leftovers = true;
+  /// Then, from every triangle still alone, augmenting paths through at most
+  /// this many taken quads (0 = none): one more quad per path, each quad of
+  /// the new pairing a candidate that passed the tests above.
+  int augment_depth = 3;
+  /// ... using only candidate quads whose corners are within this of 90°,
+  /// degrees (more quads at worse corners above it: on the brain mask, 60°
+  /// gains 0.3% quads and loses 0.14% of the corners within 90 ± 20°).
+  double augment_max_deviation = 40;
 };
 
 struct QuadResult {
@@ -37,6 +45,7 @@ struct QuadResult {
   std::size_t like_merges = 0;       ///< quads made across a like edge
   std::size_t leftover_merges = 0;   ///< quads made across an unlike edge from leftover triangles
   std::size_t triangles_left = 0;    ///< triangles kept as triangles
+  std::size_t augmented = 0;         ///< augmenting paths applied (each one more quad)
 };
 
 /// `tri`: a triangle mesh whose vertices are the particles; `type`: #V types
