@@ -40,7 +40,7 @@ TARGETS = {"quad_share": 0.95, "corner_share_70_110": 0.90, "valence4_share": 0.
 # The ordinary packing's spacing that gives the quad packing's vertex count, as a first guess: about
 # the same spacing (measured: 1.00-1.02 on the sphere, skull, knot and bunny; its particles sit a
 # little closer than `--spacing`, the quad packing's unlike neighbours at it).
-HEX_PER_SQUARE = 1.01
+PLAIN_SPACING_FACTOR = 1.01
 VERTEX_TOLERANCE = 0.05
 
 
@@ -122,7 +122,7 @@ def dataset(args, name, src, iso, spacing, desc, img, view):
     row["ours"]["updates_per_particle"] = typed["counts"]["particle_updates"] / max(1, n)
     row["ours_raw"] = measure(args, w("ours_raw.ply"), fa, w("ours_raw_ms.json"))
     # The ordinary triangle surface at the same vertex count, then Gmsh.
-    s = spacing * HEX_PER_SQUARE
+    s = spacing * PLAIN_SPACING_FACTOR
     tries = []
     for _ in range(3):
         log(f"{name}: ordinary particles, spacing {s:.5g} (target {n} vertices)")

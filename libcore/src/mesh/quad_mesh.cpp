@@ -13,18 +13,6 @@ namespace {
 
 constexpr double kRadToDeg = 57.29577951308232;
 
-std::uint64_t edge_key(int a, int b) {
-  if (a > b) std::swap(a, b);
-  return (std::uint64_t(std::uint32_t(a)) << 32) | std::uint32_t(b);
-}
-
-double corner_angle(const Vec3& prev, const Vec3& v, const Vec3& next) {
-  const Vec3 a = prev - v, b = next - v;
-  const double la = norm(a), lb = norm(b);
-  if (!(la > 0 && lb > 0)) return 0;
-  return std::acos(std::clamp(dot(a, b) / (la * lb), -1.0, 1.0)) * kRadToDeg;
-}
-
 Vec3 triangle_normal(const Mesh& m, const std::array<int, 3>& f) {
   const Vec3 &a = m.vertices[std::size_t(f[0])], &b = m.vertices[std::size_t(f[1])], &c = m.vertices[std::size_t(f[2])];
   return cross(b - a, c - a);
@@ -51,7 +39,7 @@ bool merged(const std::array<int, 3>& t, const std::array<int, 3>& u, std::array
 double corner_deviation(const std::vector<Vec3>& x, const std::array<int, 4>& q) {
   double worst = 0;
   for (int i = 0; i < 4; ++i) {
-    const double a = corner_angle(x[std::size_t(q[std::size_t((i + 3) % 4)])], x[std::size_t(q[std::size_t(i)])],
+    const double a = corner_angle_deg(x[std::size_t(q[std::size_t((i + 3) % 4)])], x[std::size_t(q[std::size_t(i)])],
                                   x[std::size_t(q[std::size_t((i + 1) % 4)])]);
     worst = std::max(worst, std::fabs(a - 90));
   }
@@ -154,7 +142,8 @@ QuadResult quad_dominant(const Mesh& tri, const std::vector<int>& type, const Qu
   halves.reserve(3 * nf);
   for (std::size_t f = 0; f < nf; ++f)
     for (int k = 0; k < 3; ++k)
-      halves.push_back({edge_key(tri.faces[f][std::size_t(k)], tri.faces[f][std::size_t((k + 1) % 3)]), std::uint32_t(f)});
+      halves.push_back({undirected_edge_key(tri.faces[f][std::size_t(k)], tri.faces[f][std::size_t((k + 1) % 3)]),
+                        std::uint32_t(f)});
   std::sort(halves.begin(), halves.end());
   QuadResult r;
   std::vector<Candidate> like, other;
@@ -219,6 +208,43 @@ QuadResult quad_dominant(const Mesh& tri, const std::vector<int>& type, const Qu
   return r;
 }
 
+double corner_angle_deg(const Vec3& prev, const Vec3& v, const Vec3& next) {
+  const Vec3 a = prev - v, b = next - v;
+  const double la = norm(a), lb = norm(b);
+  if (!(la > 0 && lb > 0)) return 0;
+  return std::acos(std::clamp(dot(a, b) / (la * lb), -1.0, 1.0)) * kRadToDeg;
+}
+
+Vec3 polygon_normal(const std::vector<Vec3>& x, const std::array<int, 4>& f) {
+  const int n = f[3] >= 0 ? 4 : 3;
+  Vec3 s(0, 0, 0);
+  for (int k = 0; k < n; ++k) {
+    const Vec3& p = x[std::size_t(f[std::size_t(k)])];
+    s += cross(x[std::size_t(f[std::size_t((k + 1) % n)])] - p, x[std::size_t(f[std::size_t((k + n - 1) % n)])] - p);
+  }
+  return s;
+}
+
+double polygon_scaled_jacobian(const std::vector<Vec3>& x, const std::array<int, 4>& f) {
+  if (f[3] < 0) return 1;
+  const Vec3 normal = polygon_normal(x, f);
+  const double ln = norm(normal);
+  double jac = 1;
+  for (int k = 0; k < 4; ++k) {
+    const Vec3& p = x[std::size_t(f[std::size_t(k)])];
+    const Vec3 e1 = x[std::size_t(f[std::size_t((k + 1) % 4)])] - p;
+    const Vec3 e2 = x[std::size_t(f[std::size_t((k + 3) % 4)])] - p;
+    const double l = norm(e1) * norm(e2);
+    jac = std::min(jac, l > 0 && ln > 0 ? dot(cross(e1, e2), normal) / (l * ln) : -1.0);
+  }
+  return jac;
+}
+
+std::uint64_t undirected_edge_key(int a, int b) {
+  if (a > b) std::swap(a, b);
+  return (std::uint64_t(std::uint32_t(a)) << 32) | std::uint32_t(b);
+}
+
 QuadQuality quad_quality(const PolyMesh& m) {
   m.validate("quad_quality");
   QuadQuality q;
@@ -228,7 +254,8 @@ QuadQuality quad_quality(const PolyMesh& m) {
   double jac_sum = 0;
   for (const auto& f : m.faces) {
     const int n = f[3] >= 0 ? 4 : 3;
-    for (int k = 0; k < n; ++k) edges.push_back(edge_key(f[std::size_t(k)], f[std::size_t((k + 1) % n)]));
+    for (int k = 0; k < n; ++k)
+      edges.push_back(undirected_edge_key(f[std::size_t(k)], f[std::size_t((k + 1) % n)]));
     if (n == 3) {
       ++q.triangles;
       continue;
@@ -236,21 +263,15 @@ QuadQuality quad_quality(const PolyMesh& m) {
     ++q.quads;
     const Vec3* x[4];
     for (int k = 0; k < 4; ++k) x[k] = &m.vertices[std::size_t(f[std::size_t(k)])];
-    Vec3 normal(0, 0, 0);
-    for (int k = 0; k < 4; ++k) normal += cross(*x[(k + 1) % 4] - *x[k], *x[(k + 3) % 4] - *x[k]);
-    const double ln = norm(normal);
-    double jac = 1;
     for (int k = 0; k < 4; ++k) {
-      const double a = corner_angle(*x[(k + 3) % 4], *x[k], *x[(k + 1) % 4]);
+      const double a = corner_angle_deg(*x[(k + 3) % 4], *x[k], *x[(k + 1) % 4]);
       q.corner_min = std::min(q.corner_min, a);
       q.corner_max = std::max(q.corner_max, a);
       ++q.corner_hist[std::size_t(std::clamp(int(a / 10), 0, 17))];
       ++q.corners;
       q.corners_70_110 += a >= 70 && a <= 110;
-      const Vec3 e1 = *x[(k + 1) % 4] - *x[k], e2 = *x[(k + 3) % 4] - *x[k];
-      const double l = norm(e1) * norm(e2);
-      jac = std::min(jac, l > 0 && ln > 0 ? dot(cross(e1, e2), normal) / (l * ln) : -1.0);
     }
+    const double jac = polygon_scaled_jacobian(m.vertices, f);
     q.jacobian_min = std::min(q.jacobian_min, jac);
     jac_sum += jac;
   }

@@ -8,53 +8,19 @@
 
 #include "pm/base/error.h"
 #include "pm/mesh/meshstats.h"
+#include "pm/mesh/quad_mesh.h"
 
 namespace pm {
 namespace {
 
-constexpr double kRadToDeg = 57.29577951308232;
-constexpr double kGradientProbe = 1e-3;  // finite-difference probe, fraction of the mean edge length
+constexpr double kRadToDeg = 57.29577951308232;  // for max_fold_deg
+constexpr double kGradientProbe = 1e-3;          // finite-difference probe, fraction of the mean edge length
 
 int sides(const std::array<int, 4>& f) { return f[3] >= 0 ? 4 : 3; }
 
-double corner_angle(const Vec3& prev, const Vec3& v, const Vec3& next) {
-  const Vec3 a = prev - v, b = next - v;
-  const double la = norm(a), lb = norm(b);
-  if (!(la > 0 && lb > 0)) return 0;
-  return std::acos(std::clamp(dot(a, b) / (la * lb), -1.0, 1.0)) * kRadToDeg;
-}
-
-// Face normal (unnormalised): the sum of the corner cross products, so a
-// quad's normal is its mean plane's.
-Vec3 face_normal(const std::vector<Vec3>& x, const std::array<int, 4>& f) {
-  const int n = sides(f);
-  Vec3 s(0, 0, 0);
-  for (int k = 0; k < n; ++k) {
-    const Vec3& p = x[std::size_t(f[std::size_t(k)])];
-    s += cross(x[std::size_t(f[std::size_t((k + 1) % n)])] - p, x[std::size_t(f[std::size_t((k + n - 1) % n)])] - p);
-  }
-  return s;
-}
-
-// Scaled Jacobian of a quad (as pm::quad_quality computes it); 1 for triangles.
-double scaled_jacobian(const std::vector<Vec3>& x, const std::array<int, 4>& f) {
-  if (sides(f) == 3) return 1;
-  const Vec3 normal = face_normal(x, f);
-  const double ln = norm(normal);
-  double jac = 1;
-  for (int k = 0; k < 4; ++k) {
-    const Vec3& p = x[std::size_t(f[std::size_t(k)])];
-    const Vec3 e1 = x[std::size_t(f[std::size_t((k + 1) % 4)])] - p, e2 = x[std::size_t(f[std::size_t((k + 3) % 4)])] - p;
-    const double l = norm(e1) * norm(e2);
-    jac = std::min(jac, l > 0 && ln > 0 ? dot(cross(e1, e2), normal) / (l * ln) : -1.0);
-  }
-  return jac;
-}
-
 class Smoother {
  public:
-  Smoother(PolyMesh& m, const ScalarField& f, double iso, const QuadSmoothParams& p)
-      : m_(m), f_(f), iso_(iso), p_(p) {
+  Smoother(PolyMesh& m, const ScalarField& f, double iso, const QuadSmoothParams& p) : m_(m), f_(f), iso_(iso), p_(p) {
     const std::size_t nv = m.vertices.size();
     // vertex -> faces (CSR), and the vertices on open or non-manifold edges.
     start_.assign(nv + 1, 0);
@@ -64,10 +30,12 @@ class Smoother {
     faces_.resize(start_[nv]);
     std::vector<std::uint32_t> fill(start_.begin(), start_.end() - 1);
     for (std::size_t i = 0; i < m.faces.size(); ++i)
-      for (int k = 0; k < sides(m.faces[i]); ++k) faces_[fill[std::size_t(m.faces[i][std::size_t(k)])]++] = std::uint32_t(i);
+      for (int k = 0; k < sides(m.faces[i]); ++k)
+        faces_[fill[std::size_t(m.faces[i][std::size_t(k)])]++] = std::uint32_t(i);
     std::vector<std::uint64_t> edges;
     for (const auto& f4 : m.faces)
-      for (int k = 0; k < sides(f4); ++k) edges.push_back(key(f4[std::size_t(k)], f4[std::size_t((k + 1) % sides(f4))]));
+      for (int k = 0; k < sides(f4); ++k)
+        edges.push_back(undirected_edge_key(f4[std::size_t(k)], f4[std::size_t((k + 1) % sides(f4))]));
     std::sort(edges.begin(), edges.end());
     pinned_.assign(nv, 0);
     double total = 0;
@@ -101,11 +69,6 @@ class Smoother {
   }
 
  private:
-  static std::uint64_t key(int a, int b) {
-    if (a > b) std::swap(a, b);
-    return (std::uint64_t(std::uint32_t(a)) << 32) | std::uint32_t(b);
-  }
-
   // The two polygon neighbours of v in face f4 (previous, next).
   static std::pair<int, int> around(const std::array<int, 4>& f4, int v) {
     const int n = sides(f4);
@@ -125,9 +88,9 @@ class Smoother {
       const int n = sides(f4);
       const double target = n == 4 ? 90.0 : 60.0;
       for (int c = 0; c < n; ++c) {
-        const double a = corner_angle(m_.vertices[std::size_t(f4[std::size_t((c + n - 1) % n)])],
-                                      m_.vertices[std::size_t(f4[std::size_t(c)])],
-                                      m_.vertices[std::size_t(f4[std::size_t((c + 1) % n)])]);
+        const double a = corner_angle_deg(m_.vertices[std::size_t(f4[std::size_t((c + n - 1) % n)])],
+                                          m_.vertices[std::size_t(f4[std::size_t(c)])],
+                                          m_.vertices[std::size_t(f4[std::size_t((c + 1) % n)])]);
         const double d = (a - target) / 90.0;
         e += d * d;
       }
@@ -170,11 +133,13 @@ class Smoother {
     bool ok = true;
     for (std::uint32_t k = start_[v]; ok && k < start_[v + 1]; ++k) {
       const auto& f4 = m_.faces[faces_[k]];
-      const Vec3 n = face_normal(m_.vertices, f4);
+      const Vec3 n = polygon_normal(m_.vertices, f4);
       const Vec3& n0 = normals_before[k - start_[v]];
       const double l = norm(n) * norm(n0);
-      if (!(l > 0) || dot(n, n0) < cos_fold * l) ok = false;
-      else if (scaled_jacobian(m_.vertices, f4) < std::min(jac_before[k - start_[v]], p_.min_jacobian)) ok = false;
+      if (!(l > 0) || dot(n, n0) < cos_fold * l)
+        ok = false;
+      else if (polygon_scaled_jacobian(m_.vertices, f4) < std::min(jac_before[k - start_[v]], p_.min_jacobian))
+        ok = false;
     }
     m_.vertices[v] = saved;
     return ok;
@@ -203,8 +168,8 @@ class Smoother {
     normals_.resize(nf);
     jac_.resize(nf);
     for (std::size_t k = 0; k < nf; ++k) {
-      normals_[k] = face_normal(m_.vertices, m_.faces[faces_[start_[v] + k]]);
-      jac_[k] = scaled_jacobian(m_.vertices, m_.faces[faces_[start_[v] + k]]);
+      normals_[k] = polygon_normal(m_.vertices, m_.faces[faces_[start_[v] + k]]);
+      jac_[k] = polygon_scaled_jacobian(m_.vertices, m_.faces[faces_[start_[v] + k]]);
     }
     double step = p_.step * ref;
     for (int s = 0; s <= p_.halvings; ++s, step *= 0.5) {
@@ -231,9 +196,9 @@ class Smoother {
       const int n = sides(f4);
       const double target = n == 4 ? 90.0 : 60.0;
       for (int c = 0; c < n; ++c) {
-        const double d = (corner_angle(m_.vertices[std::size_t(f4[std::size_t((c + n - 1) % n)])],
-                                       m_.vertices[std::size_t(f4[std::size_t(c)])],
-                                       m_.vertices[std::size_t(f4[std::size_t((c + 1) % n)])]) -
+        const double d = (corner_angle_deg(m_.vertices[std::size_t(f4[std::size_t((c + n - 1) % n)])],
+                                           m_.vertices[std::size_t(f4[std::size_t(c)])],
+                                           m_.vertices[std::size_t(f4[std::size_t((c + 1) % n)])]) -
                           target) /
                          90.0;
         e += d * d;

@@ -12,6 +12,7 @@
 // World units; angles in degrees.
 #include <array>
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -79,6 +80,18 @@ struct QuadQuality {
 };
 
 QuadQuality quad_quality(const PolyMesh& m);
+
+/// The polygon-mesh measures quad_quality and the quad smoother share.
+/// Angle at v between the edges to prev and next, degrees (0 when an edge is degenerate).
+double corner_angle_deg(const Vec3& prev, const Vec3& v, const Vec3& next);
+/// Normal of face f of x (a triangle, or a quad when f[3] >= 0), not
+/// normalised: the sum of its corners' cross products (a quad's mean plane).
+Vec3 polygon_normal(const std::vector<Vec3>& x, const std::array<int, 4>& f);
+/// Scaled Jacobian of face f (quads; 1 for triangles): the smallest over its
+/// corners of (e1 × e2)·n / (|e1| |e2|), n = polygon_normal; -1 when degenerate.
+double polygon_scaled_jacobian(const std::vector<Vec3>& x, const std::array<int, 4>& f);
+/// Key of the undirected edge (a, b), the smaller index in the high word.
+std::uint64_t undirected_edge_key(int a, int b);
 Json to_json(const QuadQuality& q);
 
 }  // namespace pm
