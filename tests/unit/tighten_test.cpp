@@ -172,6 +172,36 @@ TEST(Tighten, LargeSphereNearlyUnchanged) {
   EXPECT_LE(max_curvature(t.distance), 1.1 / p.radius);
 }
 
+// A mask thinner than 2r everywhere has an empty round: the flow would shrink
+// it away. It must survive, tightened at a smaller radius (or untightened).
+TEST(Tighten, ThinMaskIsNeverErased) {
+  const Geometry g = Geometry::with_spacing(1, 1, 1, Vec3(-10, -10, -10));
+  for (const double rb : {0.0, 1.0}) {  // a single voxel, a cross of 7
+    const Volume ball = mask_of({21, 21, 21}, g, [&](const Vec3& x) { return norm(x) <= rb; });
+    TightenParams p;
+    p.radius = 4;
+    const TightenResult t = tighten(ball, p);
+    EXPECT_EQ(t.requested_radius, 4);
+    EXPECT_LT(t.radius, 4 / 2.0 + 1e-12) << rb;
+    const auto pts = zero_set(t.distance);
+    ASSERT_FALSE(pts.empty()) << rb;
+    Vec3 c;
+    for (const Vec3& x : pts) {
+      c = c + x / double(pts.size());
+      // inside the mask's own solid (the level 0.5 between voxels) plus half a voxel
+      EXPECT_LE(norm(x), rb + 1.0) << rb;
+    }
+    EXPECT_LT(norm(c), 0.1) << rb;  // the ball and the voxel are symmetric about the origin
+  }
+  // A ball that a radius-2 opening keeps is tightened at the radius asked for.
+  const Volume big = mask_of({21, 21, 21}, g, [&](const Vec3& x) { return norm(x) <= 6; });
+  TightenParams p;
+  p.radius = 2;
+  const TightenResult t = tighten(big, p);
+  EXPECT_EQ(t.radius, 2);
+  EXPECT_EQ(t.requested_radius, 2);
+}
+
 TEST(Tighten, PadsMaskTouchingTheBorder) {
   const Geometry g = Geometry::with_spacing(2, 2, 2, Vec3(10, 20, 30));
   const Volume m = mask_of({12, 12, 12}, g, [&](const Vec3& x) { return x.x <= 18; });  // slab at the border

@@ -351,6 +351,44 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
   };
   std::vector<float> dS = timed_sd("tighten.sd_S", F, wd, gw, dp);
   std::vector<float>().swap(F);
+
+  // A mask thinner than 2r everywhere (its depth, the largest distance of an
+  // inside point to its surface, below r) has an empty round: nothing holds
+  // the flow and it shrinks the material to a dot. Never erase a material:
+  // tighten at half the radius (same grid) until the round is not empty, and
+  // below kTightenMinRadiusVoxels fine voxels keep the mask's own surface.
+  const double depth = -double(*std::min_element(dS.begin(), dS.end()));
+  if (!(r <= kTightenRoundDepth * depth)) {
+    if (r / 2 >= kTightenMinRadiusVoxels * hmin) {
+      std::vector<float>().swap(dS);
+      stage.reset();
+      TightenParams q = p;
+      q.radius = r / 2;
+      q.pad = int(res.pad);
+      TightenResult half = tighten(mask, q);
+      half.pad = res.pad;
+      half.requested_radius = p.radius;
+      return half;
+    }
+    stage.emplace("tighten.redistance");
+    const std::vector<float> d = [&] {
+      std::vector<float> full(fd.count(), FLT_MAX / 4);
+      pm::parallel_for(std::size_t(0), wd.nz, [&](std::size_t kw) {
+        for (std::size_t jw = 0; jw < wd.ny; ++jw)
+          std::copy_n(dS.begin() + long(wd.nx * (jw + wd.ny * kw)), wd.nx,
+                      full.begin() + long(wlo[0] + fd.nx * (jw + wlo[1] + fd.ny * (kw + wlo[2]))));
+      });
+      return signed_distance(full, fd, gf, {});
+    }();
+    res.distance = Volume(VoxelType::f32, fd, gf);
+    float* out = res.distance.data<float>();
+    const float sign = p.positive_inside ? -1.f : 1.f;
+    for (std::size_t c = 0; c < d.size(); ++c) out[c] = sign * d[c];
+    res.converged = true;
+    res.radius = 0;
+    res.requested_radius = p.radius;
+    return res;
+  }
   dp.allow_no_crossing = true;  // the erosion can be empty (everything thinner than 2r)
   dp.band = w + hmax;
   dp.iso = -r;
@@ -439,6 +477,8 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
   }
   if (!active.empty()) band_scatter(band, cur, phi);
   if (active.empty()) res.converged = true;
+  res.radius = r;
+  res.requested_radius = p.radius;
 
   stage.emplace("tighten.redistance");
   // The whole grid: outside the working box every node is outside.

@@ -68,7 +68,18 @@ struct TightenResult {
   double last_change = 0;       ///< largest move of the last step, voxels
   std::size_t mortar_nodes = 0; ///< nodes where the round and fillet differ (the flow runs there)
   std::size_t inside_voxels = 0;  ///< inside voxels of the input mask
+  /// The radius asked for, and the one used (world units). They differ where
+  /// the asked radius would erase the mask (thinner than 2r everywhere: the
+  /// round is empty and the flow shrinks it to a dot): the radius is halved
+  /// until it is at most kTightenRoundDepth of the mask's depth, and is 0
+  /// (the mask's own surface, untightened) below kTightenMinRadiusVoxels fine voxels.
+  double requested_radius = 0, radius = 0;
 };
+/// Smallest radius tried for a mask that a larger one would erase, in fine voxels.
+constexpr double kTightenMinRadiusVoxels = 0.25;
+/// The radius used is at most this share of the mask's depth (its deepest
+/// inside point's distance to its surface), so the round is a solid, not a dot.
+constexpr double kTightenRoundDepth = 0.9;
 
 /// Defaults taken from the volume's header and size (`tighten --radius auto
 /// --upsample auto`):
