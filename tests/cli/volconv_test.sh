@@ -64,6 +64,42 @@ for k, n in m["labels"].items():
 vol = lambda d: d[0] * d[1] * d[2]
 assert p["labels"][new] == vol(p["dims"]) - vol(m["dims"]), p["labels"]
 PY
+# --pad auto: mickey's border holds only the background, so nothing is added; cut
+# through its head (a material now reaches the border) it is padded by 3 voxels of the
+# border's majority label, the background, and no new label appears.
+"$VC" "$M" "$T/auto.nrrd" --pad auto --pad-value auto --stats "$T/auto.json"
+info "$T/auto.nrrd" > "$T/a.json"
+/usr/bin/python3 - "$M" "$T/cut.nrrd" <<'PY'
+import gzip, sys
+import numpy as np
+raw = open(sys.argv[1], "rb").read()
+head, data = raw.split(b"\n\n", 1)
+f = dict(l.split(": ", 1) for l in head.decode().splitlines()[1:] if ": " in l)
+nx, ny, nz = map(int, f["sizes"].split())
+assert f["type"] == "unsigned short" and f["encoding"] == "raw" and f["endian"] == "little", f
+v = np.frombuffer(data, "<u2").reshape(nz, ny, nx)
+cut = np.ascontiguousarray(v[nz // 2:]).astype(np.uint8)  # the upper half: the head is cut at z = nz/2
+open(sys.argv[2], "wb").write(f"NRRD0004\ntype: uint8\ndimension: 3\nsizes: {nx} {ny} {cut.shape[0]}\n"
+                              f"spacings: 1 1 1\nencoding: raw\n\n".encode() + cut.tobytes())
+PY
+"$VC" "$T/cut.nrrd" "$T/cutpad.nrrd" --pad auto --pad-value auto --stats "$T/cutpad.json"
+info "$T/cut.nrrd" > "$T/c0.json"
+info "$T/cutpad.nrrd" > "$T/c1.json"
+python3 - "$T/m.json" "$T/a.json" "$T/auto.json" "$T/c0.json" "$T/c1.json" "$T/cutpad.json" <<'PY'
+import json, sys
+m, a, st, c0, c1, cst = (json.load(open(x)) for x in sys.argv[1:7])
+assert a["dims"] == m["dims"] and a["labels"] == m["labels"], (a["dims"], a["labels"])
+assert st["pad_auto"] == {"border_labels": 1, "padded": False}, st["pad_auto"]
+assert cst["pad_auto"]["border_labels"] >= 2 and cst["pad_auto"]["padded"], cst["pad_auto"]
+assert [d + 6 for d in c0["dims"]] == c1["dims"], (c0["dims"], c1["dims"])
+assert set(c1["labels"]) == set(c0["labels"]), (c0["labels"], c1["labels"])  # no new label
+vol = lambda d: d[0] * d[1] * d[2]
+bg = str(int(cst["pad"]["value"]))  # mickey's background is label 1
+assert bg == max(m["labels"], key=lambda k: m["labels"][k]), (bg, m["labels"])
+assert c1["labels"][bg] - c0["labels"][bg] == vol(c1["dims"]) - vol(c0["dims"]), c1["labels"]
+for k, n in c0["labels"].items():
+    if k != bg: assert c1["labels"][k] == n, (k, n)
+PY
 
 # 3. Signed distance of a closed mesh: negative inside, positive outside, |grad| ~ 1.
 "$VC" "$SRC/data/cgal-meshes/knot1.off" "$T/knot.nrrd" --sdf --voxel 0.5 --stats "$T/sdf.json" -q

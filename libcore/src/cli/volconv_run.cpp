@@ -92,13 +92,15 @@ void add_volconv_options(CLI::App& app, VolConvRun& cfg) {
                "inside): write the label map of the material with the largest indicator at each voxel node "
                "(int32, the first volume's grid)");
   app.add_option("--pad", cfg.pad,
-                 "Last (before --type): grow the grid by N voxels on every side (the origin "
+                 "Last (before --type): grow the grid by N (0-4096) voxels on every side (the origin "
                  "moves so every voxel keeps its world position), e.g. so that materials touching the "
-                 "volume border get a surface there")
-      ->check(CLI::Range(0, 4096));
+                 "volume border get a surface there; auto[:N] = N (default 3) voxels on a label map "
+                 "whose border holds more than one label, else none")
+      ->capture_default_str();
   app.add_option("--pad-value", cfg.pad_value,
-                 "Value of the padding voxels: a number, or \"new\" = one more than the largest label "
-                 "(a new outside material for a label map)")
+                 "Value of the padding voxels: a number, \"new\" = one more than the largest label "
+                 "(a new outside material for a label map), or \"auto\" = the label holding more than half "
+                 "of the border voxels (the background of a cut scan), else new")
       ->capture_default_str();
   app.add_option("--min-voxels", cfg.min_voxels,
                  "After --merge: drop labels with fewer than N voxels; their voxels join the most common "
@@ -136,6 +138,24 @@ void run_volconv(VolConvRun& cfg, const CommonFlags& flags, const CLI::App& app)
   }
   if (out.empty()) throw pm::UsageError("an output file is required (or --info)");
   pm::check_output_path(out, pm::OutputKind::volume, "output");
+  // --pad N | auto | auto:N
+  std::size_t pad_voxels = 0;
+  const bool pad_auto = pad.rfind("auto", 0) == 0;
+  {
+    std::string n = pad_auto ? pad.substr(4) : pad;
+    if (pad_auto && !n.empty()) n = n[0] == ':' ? n.substr(1) : std::string("x");
+    if (pad_auto && n.empty()) n = std::to_string(pm::kAutoPadVoxels);
+    std::size_t pos = 0;
+    long v = -1;
+    try {
+      v = std::stol(n, &pos);
+    } catch (const std::exception&) {
+      pos = 0;
+    }
+    if (pos == 0 || pos != n.size() || v < 0 || v > 4096 || (pad_auto && v == 0))
+      throw pm::UsageError("--pad \"" + pad + "\": expected a voxel count 0-4096, auto or auto:N (N 1-4096)");
+    pad_voxels = std::size_t(v);
+  }
   pm::Volume v;
   if (argmax) {
     const pm::MaterialSet ms = pm::load_materials(in, pm::KernelType::catmull_rom);
@@ -222,10 +242,25 @@ void run_volconv(VolConvRun& cfg, const CommonFlags& flags, const CLI::App& app)
       st["parameters"] = {{"distance_iso", distance_iso}, {"inside", below ? "below" : "above"}};
     }
   }
-  if (pad > 0 || app.count("--pad-value") > 0) {
-    if (pad == 0) throw pm::UsageError("--pad-value needs --pad N with N >= 1");
+  pm::BorderPadding border;
+  if (pad_auto || pad_value == "auto") {
+    try {
+      border = pm::border_padding(v);  // refuses a volume that is not a label map
+    } catch (const pm::InputError& e) {
+      throw pm::InputError(pm::quote(in) + ": --pad auto / --pad-value auto need a label map: " + e.what());
+    }
+    if (pad_auto && !border.pad) pad_voxels = 0;
+    st["pad_auto"] = {{"border_labels", border.border_labels}, {"padded", pad_voxels > 0}};
+  }
+  if (pad_voxels > 0 || (!pad_auto && app.count("--pad-value") > 0)) {
+    if (pad_voxels == 0) throw pm::UsageError("--pad-value needs --pad N with N >= 1 (or --pad auto)");
     double value = 0;
-    if (pad_value == "new") {
+    if (pad_value == "auto") {
+      value = double(border.value);
+      pm::info("padding by " + std::to_string(pad_voxels) + " voxels of " +
+               (border.new_label ? "a new outside label " : "label ") + std::to_string(border.value) + ": " +
+               std::to_string(border.border_labels) + " labels reach the volume border");
+    } else if (pad_value == "new") {
       pm::require_labels(v, pm::quote(in));
       value = pm::value_range(v).hi + 1;
     } else {
@@ -234,11 +269,11 @@ void run_volconv(VolConvRun& cfg, const CommonFlags& flags, const CLI::App& app)
         value = std::stod(pad_value, &pos);
         if (pos != pad_value.size() || !std::isfinite(value)) throw std::invalid_argument("");
       } catch (const std::exception&) {
-        throw pm::UsageError("--pad-value \"" + pad_value + "\": expected a finite number or \"new\"");
+        throw pm::UsageError("--pad-value \"" + pad_value + "\": expected a finite number, \"new\" or \"auto\"");
       }
     }
-    v = pm::padded(v, pad, value);
-    st["pad"] = {{"voxels", pad}, {"value", value}};
+    v = pm::padded(v, pad_voxels, value);
+    st["pad"] = {{"voxels", pad_voxels}, {"value", value}};
   }
   if (!type.empty()) v = v.converted(pm::parse_voxel_type(type));
   pm::write_volume(v, out);

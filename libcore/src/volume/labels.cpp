@@ -1,5 +1,6 @@
 #include "pm/volume/labels.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <set>
@@ -101,6 +102,40 @@ std::map<std::int64_t, std::size_t> label_counts(const Volume& v, std::size_t ma
     }
   }
   return {counts.begin(), counts.end()};
+}
+
+std::map<std::int64_t, std::size_t> border_label_counts(const Volume& v) {
+  require_labels(v, "border_label_counts");
+  const Dims& n = v.dims();
+  std::map<std::int64_t, std::size_t> counts;
+  for (std::size_t k = 0; k < n.nz; ++k)
+    for (std::size_t j = 0; j < n.ny; ++j) {
+      const bool face = k == 0 || k + 1 == n.nz || j == 0 || j + 1 == n.ny;
+      const std::size_t step = face ? 1 : std::max<std::size_t>(n.nx - 1, 1);  // inner rows: both ends only
+      for (std::size_t i = 0; i < n.nx; i += step) ++counts[std::int64_t(v.get(i, j, k))];
+    }
+  return counts;
+}
+
+BorderPadding border_padding(const Volume& v) {
+  const auto border = border_label_counts(v);
+  BorderPadding b;
+  b.border_labels = border.size();
+  std::size_t total = 0, best = 0;
+  for (const auto& [l, c] : border) {
+    total += c;
+    if (c > best) {
+      best = c;
+      b.value = l;
+    }
+  }
+  if (border.size() <= 1) return b;
+  b.pad = true;
+  if (2 * best <= total) {
+    b.new_label = true;
+    b.value = label_counts(v).rbegin()->first + 1;
+  }
+  return b;
 }
 
 Volume label_mask(const Volume& v, const std::vector<std::int64_t>& which, const std::string& what) {

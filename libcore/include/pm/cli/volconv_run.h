@@ -29,8 +29,8 @@ struct VolConvRun {
   CLI::Option* thr = nullptr;
   CLI::Option* dist = nullptr;
   bool argmax = false;
-  std::size_t pad = 0;
-  std::string pad_value = "0";
+  std::string pad = "0";        ///< N, auto or auto:N (see --pad)
+  std::string pad_value = "0";  ///< number, new or auto
   std::size_t min_voxels = 0;
 };
 

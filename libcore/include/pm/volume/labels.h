@@ -45,4 +45,25 @@ Volume drop_small_labels(const Volume& labels, std::size_t min_voxels, std::vect
 /// distinct values (a grey-level volume, not a label map).
 std::map<std::int64_t, std::size_t> label_counts(const Volume& labels, std::size_t max_labels = 65536);
 
+/// Voxel count per label on the volume's six border faces (each border voxel
+/// once). \throw InputError as label_counts.
+std::map<std::int64_t, std::size_t> border_label_counts(const Volume& labels);
+
+/// Padding of a label map whose materials reach the volume border (the
+/// materials pipeline's `PAD=auto`): none when one label fills the whole
+/// border (it is the outside material, e.g. the background of a cropped
+/// scan); else `pad` = true and `value` = the label holding more than half of
+/// the border voxels (the background of a scan cut through the body: only the
+/// cut materials get new faces), or one more than the largest label (a new
+/// outside material, for maps whose materials fill their box).
+struct BorderPadding {
+  bool pad = false;
+  std::int64_t value = 0;
+  bool new_label = false;  ///< value is a new label (one more than the largest)
+  std::size_t border_labels = 0;  ///< distinct labels on the border
+};
+BorderPadding border_padding(const Volume& labels);
+/// Voxels of padding `--pad auto` adds when the border needs it.
+constexpr std::size_t kAutoPadVoxels = 3;
+
 }  // namespace pm
