@@ -54,8 +54,8 @@ TEST(Labels, CountsMaskMerge) {
 // material cut by the border gets the border's majority label around it, and
 // a box filled by materials a new outside label.
 TEST(Labels, BorderPadding) {
-  Volume v(VoxelType::u8, Dims{6, 5, 4});  // 6*5*4 = 120 voxels, 120 - 4*3*2 = 96 on the border
-  EXPECT_EQ(border_label_counts(v).at(0), 96u);
+  Volume v(VoxelType::u8, Dims{8, 8, 8});  // 512 voxels, 512 - 6^3 = 296 on the border
+  EXPECT_EQ(border_label_counts(v).at(0), 296u);
   BorderPadding b;
   v.set(2, 2, 1, 7);  // an inner voxel: the border still holds only label 0
   b = border_padding(v);
@@ -66,18 +66,24 @@ TEST(Labels, BorderPadding) {
   v.set(0, 3, 2, 5);
   b = border_padding(v);
   EXPECT_TRUE(b.pad);
-  EXPECT_EQ(b.value, 0);  // 94 of 96 border voxels
+  EXPECT_EQ(b.value, 0);  // 294 of 296 border voxels
   EXPECT_FALSE(b.new_label);
   EXPECT_EQ(border_label_counts(v).at(5), 2u);
   // Half the box is label 3, half label 4: no majority, a new label (largest + 1).
-  Volume h(VoxelType::u8, Dims{6, 5, 4});
-  for (std::size_t k = 0; k < 4; ++k)
-    for (std::size_t j = 0; j < 5; ++j)
-      for (std::size_t i = 0; i < 6; ++i) h.set(i, j, k, i < 3 ? 3 : 4);
+  Volume h(VoxelType::u8, Dims{8, 8, 8});
+  for (std::size_t k = 0; k < 8; ++k)
+    for (std::size_t j = 0; j < 8; ++j)
+      for (std::size_t i = 0; i < 8; ++i) h.set(i, j, k, i < 4 ? 3 : 4);
   b = border_padding(h);
   EXPECT_TRUE(b.pad);
   EXPECT_TRUE(b.new_label);
   EXPECT_EQ(b.value, 5);
+  EXPECT_EQ(b.border_labels, 2u);
+  // A tiny volume (an axis below kTightenMinVoxels) is upsampled, not padded.
+  Volume t(VoxelType::u8, Dims{2, 2, 2});
+  t.set(1, 1, 1, 4);
+  b = border_padding(t);
+  EXPECT_FALSE(b.pad);
   EXPECT_EQ(b.border_labels, 2u);
 }
 

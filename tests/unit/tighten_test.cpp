@@ -193,6 +193,18 @@ TEST(Tighten, ThinMaskIsNeverErased) {
     }
     EXPECT_LT(norm(c), 0.1) << rb;  // the ball and the voxel are symmetric about the origin
   }
+  // Dually, a mask filling its (unpadded) box but for a one-voxel hole keeps the hole.
+  {
+    const Volume holed = mask_of({21, 21, 21}, g, [&](const Vec3& x) { return norm(x) > 0.5; });
+    TightenParams p;
+    p.radius = 4;
+    p.pad = 0;
+    const TightenResult t = tighten(holed, p);
+    EXPECT_LT(t.radius, 4 / 2.0 + 1e-12);
+    const auto pts = zero_set(t.distance);
+    ASSERT_FALSE(pts.empty());
+    for (const Vec3& x : pts) EXPECT_LE(norm(x), 1.0);
+  }
   // A ball that a radius-2 opening keeps is tightened at the radius asked for.
   const Volume big = mask_of({21, 21, 21}, g, [&](const Vec3& x) { return norm(x) <= 6; });
   TightenParams p;

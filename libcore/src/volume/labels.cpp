@@ -8,6 +8,7 @@
 #include <unordered_map>
 
 #include "pm/base/error.h"
+#include "pm/volume/tighten.h"
 
 namespace pm {
 namespace {
@@ -129,7 +130,8 @@ BorderPadding border_padding(const Volume& v) {
       b.value = l;
     }
   }
-  if (border.size() <= 1) return b;
+  const Dims& n = v.dims();
+  if (border.size() <= 1 || std::min(n.nx, std::min(n.ny, n.nz)) < kTightenMinVoxels) return b;
   b.pad = true;
   if (2 * best <= total) {
     b.new_label = true;

@@ -353,11 +353,15 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
   std::vector<float>().swap(F);
 
   // A mask thinner than 2r everywhere (its depth, the largest distance of an
-  // inside point to its surface, below r) has an empty round: nothing holds
+  // inside point to its surface, below r / 0.9) has an empty round: nothing holds
   // the flow and it shrinks the material to a dot. Never erase a material:
   // tighten at half the radius (same grid) until the round is not empty, and
   // below kTightenMinRadiusVoxels fine voxels keep the mask's own surface.
-  const double depth = -double(*std::min_element(dS.begin(), dS.end()));
+  // Dually, a complement thinner than 2r everywhere (a material filling the
+  // box but for a small hole, e.g. the padding around a tiny volume) has a
+  // full fillet and the flow would fill the hole.
+  const auto [dmin, dmax] = std::minmax_element(dS.begin(), dS.end());
+  const double depth = std::min(-double(*dmin), double(*dmax));
   if (!(r <= kTightenRoundDepth * depth)) {
     if (r / 2 >= kTightenMinRadiusVoxels * hmin) {
       std::vector<float>().swap(dS);

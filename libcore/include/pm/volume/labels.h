@@ -52,7 +52,8 @@ std::map<std::int64_t, std::size_t> border_label_counts(const Volume& labels);
 /// Padding of a label map whose materials reach the volume border (the
 /// materials pipeline's `PAD=auto`): none when one label fills the whole
 /// border (it is the outside material, e.g. the background of a cropped
-/// scan); else `pad` = true and `value` = the label holding more than half of
+/// scan) and on tiny volumes (an axis below kTightenMinVoxels: tighten
+/// upsamples them, and their hull is their box); else `pad` = true and `value` = the label holding more than half of
 /// the border voxels (the background of a scan cut through the body: only the
 /// cut materials get new faces), or one more than the largest label (a new
 /// outside material, for maps whose materials fill their box).
