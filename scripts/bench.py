@@ -305,7 +305,8 @@ def case_ch6():
         out = os.path.join(tmp, "frog5")
         _, wall = run(["make", "-s", "-f", os.path.join(ROOT, "Makefile.pipeline"), "materials", f"INPUT={frog}",
                        f"OUT={out}", f"BIN={BIN}", "THREADS=2", "QUIET=1", "R=2", "DOWNSAMPLE=2",
-                       "MIN_VOXELS=300", f"MERGE={merge}", "PAD=3", "PAD_VALUE=0"])
+                       "MIN_VOXELS=300", f"MERGE={merge}", "PAD=3", "PAD_VALUE=0",
+                       "EPS=0.5", "DELTA=0.4", "HMIN=2"])  # the 2008 sizing, as results_ch6.py's rows
         total = stage_rows("ch6", out, ("volconv", "morph", "tighten", "sizingfield", "gradlimit", "mcinit",
                                         "multiparticles", "tetlabel"), 1)
         q = json.load(open(os.path.join(out, "quality.json")))
