@@ -495,7 +495,7 @@ py::dict mesh_surface(const py::array& array, const py::object& origin, const py
 
 py::dict mesh_materials(const py::array& labels, const py::object& origin, const py::object& voxel_spacing,
                         const py::object& directions, const std::string& merge, std::size_t min_voxels,
-                        std::size_t pad, const std::string& pad_value, const std::string& morph_ops, int downsample,
+                        long pad, const std::string& pad_value, const std::string& morph_ops, int downsample,
                         std::optional<double> radius, std::optional<int> upsample, double eps, double delta,
                         std::optional<double> hmin,
                         std::optional<double> spacing, int decimate, int improve, bool tetrahedra, std::uint64_t seed,
@@ -506,6 +506,7 @@ py::dict mesh_materials(const py::array& labels, const py::object& origin, const
   if (upsample && (*upsample < 1 || *upsample > 8))
     throw py::value_error("upsample: " + std::to_string(*upsample) + "; expected 1 to 8 or None (auto)");
   if (hmin && !(*hmin >= 0)) throw py::value_error("hmin: " + num(*hmin) + "; expected >= 0 (world units)");
+  if (pad < -1) throw py::value_error("pad: " + std::to_string(pad) + "; expected >= 0 voxels or \"auto\"");
   const pm::Volume v = to_volume(labels, "labels", Values::labels, to_geometry(origin, voxel_spacing, directions));
   pm::MaterialsPipelineParams p;
   p.merge = merge;

@@ -1,7 +1,5 @@
 #include "pm/cli/tighten_run.h"
 
-#include <sstream>
-
 #include "pm/base/error.h"
 #include "pm/base/log.h"
 #include "pm/base/stats.h"
@@ -48,21 +46,6 @@ void add_tighten_options(CLI::App& app, TightenRun& cfg) {
                "Compress the output where the format allows (float distances shrink by only "
                "~10% and gzip takes seconds on 256^3; off by default)");
 }
-
-namespace {
-
-// Why the radius used is smaller than the one asked for (TightenResult::radius).
-std::string erased_note(const pm::TightenResult& r) {
-  std::ostringstream m;
-  m << "tightening at radius " << r.requested_radius << " would erase it (thinner than 2 R everywhere); ";
-  if (r.radius > 0)
-    m << "tightened at radius " << r.radius << " instead";
-  else
-    m << "kept untightened (its voxels' own surface)";
-  return m.str();
-}
-
-}  // namespace
 
 void run_tighten(TightenRun& cfg, const CommonFlags& flags) {
   (void)flags;
@@ -131,7 +114,7 @@ void run_tighten(TightenRun& cfg, const CommonFlags& flags) {
     try {
       pm::tighten_labels(labels, p, [&](int label, pm::TightenResult&& r) {
         const std::string path = out.substr(0, pct) + std::to_string(label) + out.substr(pct + 2);
-        if (r.radius < r.requested_radius) pm::warn("label " + std::to_string(label) + ": " + erased_note(r));
+        if (r.radius < r.requested_radius) pm::warn("label " + std::to_string(label) + ": " + pm::tighten_radius_note(r));
         if (!r.converged)
           pm::warn("label " + std::to_string(label) + ": not converged after " + std::to_string(r.iterations) +
                    " steps (last move " + std::to_string(r.last_change) + " voxels); raise --iterations");
@@ -163,7 +146,7 @@ void run_tighten(TightenRun& cfg, const CommonFlags& flags) {
   if (r.pad > 0)
     pm::warn("the mask comes within R + 3 voxels of the border: padded by " + std::to_string(r.pad) +
              " voxels on every side (output origin moved)");
-  if (r.radius < r.requested_radius) pm::warn(erased_note(r));
+  if (r.radius < r.requested_radius) pm::warn(pm::tighten_radius_note(r));
   if (!r.converged)
     pm::warn("not converged after " + std::to_string(r.iterations) + " steps (last move " +
              std::to_string(r.last_change) + " voxels); raise --iterations");

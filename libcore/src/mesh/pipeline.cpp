@@ -510,21 +510,32 @@ MaterialsPipelineResult mesh_materials_pipeline(const Volume& in, const Material
         throw InputError(what + ": " + e.what());
       }
     }
-    if (p.pad > 0) {
+    if (p.pad < -1) throw UsageError("--pad " + std::to_string(p.pad) + "; expected >= 0 voxels or -1 (auto)");
+    std::size_t pad = p.pad >= 0 ? std::size_t(p.pad) : 0;
+    const std::string pad_value = !p.pad_value.empty() ? p.pad_value : p.pad < 0 ? "auto" : "new";
+    BorderPadding border;
+    if (p.pad < 0 || pad_value == "auto") {
+      require_labels(lv, what);
+      border = border_padding(lv);
+      if (p.pad < 0 && border.pad) pad = kAutoPadVoxels * std::size_t(p.downsample);
+    }
+    if (pad > 0) {
       double value = 0;
-      if (p.pad_value == "new") {
+      if (pad_value == "auto") {
+        value = double(border.value);
+      } else if (pad_value == "new") {
         require_labels(lv, what);
         value = value_range(lv).hi + 1;
       } else {
         try {
           std::size_t pos = 0;
-          value = std::stod(p.pad_value, &pos);
-          if (pos != p.pad_value.size() || !std::isfinite(value)) throw std::invalid_argument("");
+          value = std::stod(pad_value, &pos);
+          if (pos != pad_value.size() || !std::isfinite(value)) throw std::invalid_argument("");
         } catch (const std::exception&) {
-          throw UsageError("--pad-value \"" + p.pad_value + "\": expected a finite number or \"new\"");
+          throw UsageError("--pad-value \"" + pad_value + "\": expected a finite number, \"new\" or \"auto\"");
         }
       }
-      lv = padded(lv, p.pad, value);
+      lv = padded(lv, pad, value);
     }
     lv = lv.converted(VoxelType::i32);
   });
@@ -550,16 +561,18 @@ MaterialsPipelineResult mesh_materials_pipeline(const Volume& in, const Material
   // tighten --per-label: one signed distance per label, one grid.
   std::vector<int> labels;
   std::vector<Volume> sdfs;
-  double radius = 0;  // the radius tighten used (HMIN's default)
+  double radius = 0;  // HMIN's default: half the radius tighten used (the radius when upsampled)
   stages.run("tighten", [&] {
     // tighten --per-label --radius R --upsample K, auto from morph.nrrd's header and size.
     const TightenDefaults td = tighten_defaults(lv, p.radius, p.upsample);
-    radius = td.radius;
+    radius = td.upsample > 1 ? td.radius : td.radius / 2;  // HMIN auto, as Makefile.ch6
     TightenParams tp;
     tp.radius = td.radius;
     tp.upsample = td.upsample;
     try {
       tighten_labels(lv, tp, [&](int label, TightenResult&& r) {
+        if (r.radius < r.requested_radius)
+          res.warnings.push_back("tighten: label " + std::to_string(label) + ": " + tighten_radius_note(r));
         if (!r.converged)
           res.warnings.push_back("tighten: label " + std::to_string(label) + ": not converged after " +
                                  std::to_string(r.iterations) + " steps");

@@ -218,6 +218,16 @@ double gradient_defect(const Band& band, const std::vector<float>& cur, const do
 
 }  // namespace
 
+std::string tighten_radius_note(const TightenResult& r) {
+  std::ostringstream m;
+  m << "tightening at radius " << r.requested_radius << " would erase it (thinner than 2 R everywhere); ";
+  if (r.radius > 0)
+    m << "tightened at radius " << r.radius << " instead";
+  else
+    m << "kept untightened (its voxels' own surface)";
+  return m.str();
+}
+
 TightenResult tighten(const Volume& mask, const TightenParams& p) {
   if (!(p.radius > 0) || !std::isfinite(p.radius))
     throw UsageError("tighten: radius " + std::to_string(p.radius) + " is invalid; expected > 0 (world units)");

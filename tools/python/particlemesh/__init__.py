@@ -395,10 +395,10 @@ def mesh_surface(volume, *, iso: Optional[float] = None, labels: Optional[Sequen
     return out
 
 
-def mesh_materials(labels, *, merge: Optional[str] = None, min_voxels: int = 0, pad: int = 0,
-                   pad_value: Union[str, int] = "new", morph_ops: str = "close:ball,open:ball", downsample: int = 1,
-                   radius: Optional[float] = None, upsample: Optional[int] = None, eps: float = 0.5,
-                   delta: float = 0.4,
+def mesh_materials(labels, *, merge: Optional[str] = None, min_voxels: int = 0, pad: Union[str, int] = "auto",
+                   pad_value: Optional[Union[str, int]] = None, morph_ops: str = "close:ball,open:ball",
+                   downsample: int = 1, radius: Optional[float] = None, upsample: Optional[int] = None,
+                   eps: float = 0.4, delta: float = 0.05,
                    hmin: Optional[float] = None, spacing: Optional[float] = None, decimate: int = 2,
                    improve: int = 3, tetrahedra: bool = False, seed: int = 1, threads: int = 0, origin=None,
                    voxel_spacing=None,
@@ -410,7 +410,7 @@ def mesh_materials(labels, *, merge: Optional[str] = None, min_voxels: int = 0, 
     per label (morph_ops, or "none"; downsample) with voting fill -> tighten
     per label (radius, world units, and upsample; None = auto, from the label
     map after morphology: its largest voxel spacing) -> medial axes -> sizing
-    field (eps, hmin default the radius used) -> gradient limit (delta) -> junction seeds
+    field (eps, hmin default half the radius used) -> gradient limit (delta) -> junction seeds
     (decimate) -> multi-material particles (or a uniform `spacing`) ->
     labelled Delaunay tetrahedra -> `improve` rounds on the interfaces.
     Keywords are Makefile.ch6's variables in lower case, same defaults
@@ -420,7 +420,13 @@ def mesh_materials(labels, *, merge: Optional[str] = None, min_voxels: int = 0, 
     arr, o, s, d = _grid(labels, origin, voxel_spacing, directions, "labels")
     if arr.dtype == np.bool_:
         arr = arr.astype(np.uint8)
-    r = _run(_core.mesh_materials, progress, arr, o, s, d, merge or "", int(min_voxels), int(pad), str(pad_value),
+    if isinstance(pad, str) and pad != "auto":
+        raise ValueError(f'pad: "{pad}"; expected a voxel count or "auto"')
+    pad_n = -1 if isinstance(pad, str) else int(pad)
+    if pad_n < -1 or (not isinstance(pad, str) and pad_n < 0):
+        raise ValueError(f"pad: {pad}; expected >= 0 voxels or \"auto\"")
+    r = _run(_core.mesh_materials, progress, arr, o, s, d, merge or "", int(min_voxels), pad_n,
+             "" if pad_value is None else str(pad_value),
              morph_ops, int(downsample), radius, upsample, float(eps), float(delta), hmin, spacing,
              int(decimate), int(improve), bool(tetrahedra), int(seed), int(threads))
     cd = r["cell_data"]

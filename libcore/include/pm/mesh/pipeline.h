@@ -144,16 +144,18 @@ SurfacePipelineResult mesh_surface_pipeline(const Volume& input, const SurfacePi
 struct MaterialsPipelineParams {
   std::string merge;                 ///< MERGE, e.g. "1,2:1 3-5:2" ("" = none)
   std::size_t min_voxels = 0;        ///< MIN_VOXELS
-  std::size_t pad = 0;               ///< PAD voxels
-  std::string pad_value = "new";     ///< PAD_VALUE: "new" or a label
+  long pad = -1;                     ///< PAD voxels (-1 = auto: 3 x downsample when the border holds
+                                     ///< more than one label, pm::border_padding)
+  std::string pad_value;             ///< PAD_VALUE: "new", "auto" or a label ("" = auto with pad -1, else new)
   std::string morph_ops = "close:ball,open:ball";  ///< MORPH_OPS ("none" = no morphology)
   int downsample = 1;                ///< DOWNSAMPLE
   double radius = 0;                 ///< R: tightening radius, world units (0 = auto, pm::tighten_defaults
                                      ///< of the label map after morphology and downsampling)
   int upsample = 0;                  ///< UPSAMPLE (0 = auto)
-  double eps = 0.5;                  ///< EPS
-  double delta = 0.4;                ///< DELTA
-  double hmin = -1;                  ///< HMIN, world units (< 0 = the radius tighten used)
+  double eps = 0.4;                  ///< EPS
+  double delta = 0.05;               ///< DELTA
+  double hmin = -1;                  ///< HMIN, world units (< 0 = half the radius tighten used; the
+                                     ///< radius on a tiny, upsampled volume)
   double spacing = 0;                ///< SPACING: uniform spacing (0 = the sizing field)
   int decimate = 2;                  ///< DECIMATE of the junction seeds
   int improve = 3;                   ///< IMPROVE

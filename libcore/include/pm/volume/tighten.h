@@ -75,6 +75,9 @@ struct TightenResult {
   /// (the mask's own surface, untightened) below kTightenMinRadiusVoxels fine voxels.
   double requested_radius = 0, radius = 0;
 };
+/// Why r.radius is smaller than r.requested_radius, for a warning: "tightening
+/// at radius 1.5 would erase it (...); tightened at radius 0.375 instead".
+std::string tighten_radius_note(const TightenResult& r);
 /// Smallest radius tried for a mask that a larger one would erase, in fine voxels.
 constexpr double kTightenMinRadiusVoxels = 0.25;
 /// The radius used is at most this share of the mask's depth (its deepest
