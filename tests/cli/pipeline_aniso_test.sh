@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Issue 21: on an anisotropic label map the defaults of `make materials` (R = the largest
-# voxel spacing, from the header; HMIN = R / 2, EPS 0.4, DELTA 0.05) leave no slice terraces
+# voxel spacing, from the header; HMIN = R / 2, EPS 0.3, DELTA 0.05) leave no slice terraces
 # and no coarse bends: crease_share_20 (share of interface edges whose faces bend by more
-# than 20 degrees) <= 3% (measured 1.9% at 9.7k vertices; the 2008 sizing, EPS 0.5, DELTA 0.4,
+# than 20 degrees) <= 3% (measured 1.3% at 12.8k vertices; the 2008 sizing, EPS 0.5, DELTA 0.4,
 # HMIN = R, gave 9.2% at 2.7k). The label map is the
 # iso2mesh brain mask (256^3, 1 mm) resampled to 2 x 2 x 4 mm by taking every second voxel
 # in x and y and every fourth in z (as a scan with thick slices), cropped; skipped when the shared

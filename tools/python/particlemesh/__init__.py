@@ -398,7 +398,7 @@ def mesh_surface(volume, *, iso: Optional[float] = None, labels: Optional[Sequen
 def mesh_materials(labels, *, merge: Optional[str] = None, min_voxels: int = 0, pad: Union[str, int] = "auto",
                    pad_value: Optional[Union[str, int]] = None, morph_ops: str = "close:ball,open:ball",
                    downsample: int = 1, radius: Optional[float] = None, upsample: Optional[int] = None,
-                   eps: float = 0.4, delta: float = 0.05,
+                   eps: float = 0.3, delta: float = 0.05,
                    hmin: Optional[float] = None, spacing: Optional[float] = None, decimate: int = 2,
                    improve: int = 3, tetrahedra: bool = False, seed: int = 1, threads: int = 0, origin=None,
                    voxel_spacing=None,

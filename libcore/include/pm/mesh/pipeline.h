@@ -152,7 +152,7 @@ struct MaterialsPipelineParams {
   double radius = 0;                 ///< R: tightening radius, world units (0 = auto, pm::tighten_defaults
                                      ///< of the label map after morphology and downsampling)
   int upsample = 0;                  ///< UPSAMPLE (0 = auto)
-  double eps = 0.4;                  ///< EPS
+  double eps = 0.3;                  ///< EPS
   double delta = 0.05;               ///< DELTA
   double hmin = -1;                  ///< HMIN, world units (< 0 = half the radius tighten used; the
                                      ///< radius on a tiny, upsampled volume)
