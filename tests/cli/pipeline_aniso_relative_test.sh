@@ -3,8 +3,9 @@
 # 2 x 2 x 4 mm (every 2nd voxel in x and y, every 4th in z) and to 4 x 4 x 4 mm goes through
 # `make materials` with the defaults. R comes from the header (4 mm on both), and the
 # anisotropic map's share of interface edges bending by more than 20 degrees must not exceed
-# the isotropic 4 mm map's (measured 9.2% against 12.2%; the old default R = 1 gave 14.7%, slice
-# terraces). The absolute 3% target is not met at HMIN = 4 mm (see cli.pipeline.anisotropic_creases).
+# the isotropic 4 mm map's (measured 1.3% against 1.8% with the defaults of 2026-12-03, HMIN = R/2,
+# EPS 0.3, DELTA 0.05; 9.2% against 12.2% with the 2008 sizing; the old default R = 1 gave 14.7%,
+# slice terraces). The absolute 3% target: cli.pipeline.anisotropic_creases.
 # Skipped when the shared data is absent.
 set -euo pipefail
 BIN=$1; SRC=$2
