@@ -327,7 +327,7 @@ CASES["ch6"] = case_ch6
 def case_frognative():
     """Issue #21: `make materials` with every default on the shared frog at its own spacing (1 x 1 x 1.5 mm,
     all 15 tissues and the stray labels, nothing merged or downsampled; PAD, R, HMIN from the scan):
-    the share of interface edges bending by more than 20 degrees must be <= 3%. Opt-in (about 20 minutes
+    the share of interface edges bending by more than 20 degrees must be <= 3%. Opt-in (about 12 minutes
     and 5 GB on 2 cores)."""
     frog = os.path.join(SHARED, "vtk-frogtissue", "derived", "frogtissue.nrrd")
     if not os.path.exists(frog):
