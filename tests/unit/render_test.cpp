@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <set>
 #include <tuple>
@@ -267,6 +268,39 @@ TEST(Render, LegendNamesEachPairAndClipShowsTheInside) {
   EXPECT_THROW(render(m, p), UsageError);
   p.clip = "x:2";
   EXPECT_THROW(render(m, p), UsageError);
+}
+
+// A label map with dozens of tissues (the frog has 83 interfaces): the key lists
+// every value in columns, and the colours beyond the 12 fixed ones stay apart.
+TEST(Render, LegendInColumnsWithDistinctColours) {
+  constexpr int kValues = 60;
+  for (int a = 0; a < kValues; ++a)
+    for (int b = a + 1; b < kValues; ++b) {
+      const Vec3 ca = category_color(a), cb = category_color(b);
+      const double d = std::max({std::fabs(ca[0] - cb[0]), std::fabs(ca[1] - cb[1]), std::fabs(ca[2] - cb[2])});
+      EXPECT_GT(d, 0.02) << a << " " << b;
+    }
+  Mesh m;
+  for (int v = 0; v < kValues; ++v) {
+    const double x = double(v);
+    m.vertices.push_back({x, 0, 0});
+    m.vertices.push_back({x + 1, 0, 0});
+    m.vertices.push_back({x, 1, 0});
+    m.faces.push_back({3 * v, 3 * v + 1, 3 * v + 2});
+    m.face_ints["tissue"].push_back(v);
+  }
+  RenderParams p;
+  p.width = p.height = 400;
+  p.color_by = "tissue";
+  p.legend = true;
+  const Image key = render(m, p);
+  // 39 entries per column ((400 - 8) / 10), columns 8 + 3 + 4 * 6 + 4 = 39 pixels wide.
+  for (int v = 0; v < kValues; ++v) {
+    const int x = 4 + (v / 39) * 39 + 2, y = 4 + (v % 39) * 10 + 2;
+    const std::uint8_t* q = key.at(x, y);
+    const Vec3 c = category_color(v);
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(q[k], std::lround(255 * c[k])) << "value " << v;
+  }
 }
 
 TEST(Render, BadInput) {

@@ -39,7 +39,22 @@ Vec3 category_color(int v) {
                                   {0.890, 0.467, 0.761}, {0.650, 0.850, 0.950}, {0.737, 0.741, 0.133},
                                   {0.090, 0.745, 0.812}, {0.950, 0.850, 0.250}, {0.600, 0.900, 0.500}};
   constexpr int n = int(sizeof kPalette / sizeof kPalette[0]);
-  return kPalette[((v % n) + n) % n];
+  if (v >= 0 && v < n) return kPalette[v];
+  // Beyond the palette (and for negative values): hue by the golden angle, three
+  // lightness levels, converted from HSV.
+  const unsigned u = unsigned(v < 0 ? -(long(v) + 1) + n : long(v));
+  const double hue = std::fmod(0.1 + 0.618033988749895 * double(u), 1.0) * 6;
+  const double sat = 0.55 + 0.15 * double(u % 2), val = 0.95 - 0.2 * double((u / 2) % 3);
+  const int sector = int(hue) % 6;
+  const double f = hue - std::floor(hue), p = val * (1 - sat), q = val * (1 - sat * f), t = val * (1 - sat * (1 - f));
+  switch (sector) {
+    case 0: return {val, t, p};
+    case 1: return {q, val, p};
+    case 2: return {p, val, t};
+    case 3: return {p, q, val};
+    case 4: return {t, p, val};
+    default: return {val, p, q};
+  }
 }
 
 namespace {
@@ -124,9 +139,10 @@ const std::uint8_t* glyph(char ch) {
       {0x06, 0x08, 0x10, 0x1E, 0x11, 0x11, 0x0E}, {0x1F, 0x01, 0x02, 0x04, 0x08, 0x08, 0x08},
       {0x0E, 0x11, 0x11, 0x0E, 0x11, 0x11, 0x0E}, {0x0E, 0x11, 0x11, 0x0F, 0x01, 0x02, 0x0C}};
   static const std::uint8_t kDash[7] = {0, 0, 0, 0x1F, 0, 0, 0};
+  static const std::uint8_t kPlus[7] = {0, 0x04, 0x04, 0x1F, 0x04, 0x04, 0};
   static const std::uint8_t kBlank[7] = {0, 0, 0, 0, 0, 0, 0};
   if (ch >= '0' && ch <= '9') return kDigits[ch - '0'];
-  return ch == '-' ? kDash : kBlank;
+  return ch == '-' ? kDash : ch == '+' ? kPlus : kBlank;
 }
 
 void fill_rect(Image& img, int x0, int y0, int w, int h, const Vec3& c) {
@@ -160,15 +176,27 @@ void draw_legend(Image& img, const Mesh& m, const std::vector<int>& cat) {
   const int row = 10 * s, pad = 4 * s;
   std::size_t longest = 0;
   for (const auto& [v, n] : names) longest = std::max(longest, n.size());
-  const int rows = int(std::min<std::size_t>(names.size(), std::size_t(std::max(1, (img.height - 2 * pad) / row))));
-  const int box_w = pad + 8 * s + 3 * s + int(longest) * 6 * s + pad, box_h = pad + rows * row + pad - 3 * s;
-  fill_rect(img, 0, 0, box_w, box_h, {1, 1, 1});
-  int y = pad, shown = 0;
+  // Columns top to bottom, left to right, as many as fit in half the image's
+  // width; what does not fit ends in "+N" (N more entries).
+  const int per_col = std::max(1, (img.height - 2 * pad) / row);
+  const int col_w = 8 * s + 3 * s + int(std::max<std::size_t>(longest, 4)) * 6 * s + pad;
+  const int max_cols = std::max(1, (img.width / 2 - pad) / col_w);
+  const int total = int(names.size());
+  const int cols = std::min(max_cols, (total + per_col - 1) / per_col);
+  const int capacity = cols * per_col;
+  const int shown_n = total <= capacity ? total : capacity - 1;
+  const int rows = std::min(per_col, std::max(total, 1));
+  fill_rect(img, 0, 0, pad + cols * col_w, pad + rows * row + pad - 3 * s, {1, 1, 1});
+  int k = 0;
   for (const auto& [v, n] : names) {
-    if (shown++ == rows) break;
-    fill_rect(img, pad, y, 8 * s, 7 * s, category_color(v));
-    draw_text(img, pad + 11 * s, y, s, n, kEdge);
-    y += row;
+    const int x = pad + (k / per_col) * col_w, y = pad + (k % per_col) * row;
+    if (k == shown_n) {
+      draw_text(img, x, y, s, "+" + std::to_string(total - shown_n), kEdge);
+      break;
+    }
+    fill_rect(img, x, y, 8 * s, 7 * s, category_color(v));
+    draw_text(img, x + 11 * s, y, s, n, kEdge);
+    ++k;
   }
 }
 

@@ -45,7 +45,9 @@ struct RenderParams {
   std::string clip;
 };
 
-/// Colour of face category v (the palette `color_by` uses for face ints; it repeats every 12).
+/// Colour of face category v (the palette `color_by` uses for face ints): 12 fixed colours for
+/// v in [0, 12), then hues stepped by the golden angle with alternating lightness, so that the
+/// many interfaces of a label map with dozens of tissues do not share colours.
 Vec3 category_color(int v);
 
 /// Orthographic camera: a sphere around the points (centred on their bounding
