@@ -254,24 +254,11 @@ void run_volconv(VolConvRun& cfg, const CommonFlags& flags, const CLI::App& app)
   }
   if (pad_voxels > 0 || (!pad_auto && app.count("--pad-value") > 0)) {
     if (pad_voxels == 0) throw pm::UsageError("--pad-value needs --pad N with N >= 1 (or --pad auto)");
-    double value = 0;
-    if (pad_value == "auto") {
-      value = double(border.value);
+    const double value = pm::pad_value_of(v, pad_value, pm::quote(in));
+    if (pad_value == "auto")
       pm::info("padding by " + std::to_string(pad_voxels) + " voxels of " +
                (border.new_label ? "a new outside label " : "label ") + std::to_string(border.value) + ": " +
                std::to_string(border.border_labels) + " labels reach the volume border");
-    } else if (pad_value == "new") {
-      pm::require_labels(v, pm::quote(in));
-      value = pm::value_range(v).hi + 1;
-    } else {
-      try {
-        std::size_t pos = 0;
-        value = std::stod(pad_value, &pos);
-        if (pos != pad_value.size() || !std::isfinite(value)) throw std::invalid_argument("");
-      } catch (const std::exception&) {
-        throw pm::UsageError("--pad-value \"" + pad_value + "\": expected a finite number, \"new\" or \"auto\"");
-      }
-    }
     v = pm::padded(v, pad_voxels, value);
     st["pad"] = {{"voxels", pad_voxels}, {"value", value}};
   }

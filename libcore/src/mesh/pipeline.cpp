@@ -513,30 +513,11 @@ MaterialsPipelineResult mesh_materials_pipeline(const Volume& in, const Material
     if (p.pad < -1) throw UsageError("--pad " + std::to_string(p.pad) + "; expected >= 0 voxels or -1 (auto)");
     std::size_t pad = p.pad >= 0 ? std::size_t(p.pad) : 0;
     const std::string pad_value = !p.pad_value.empty() ? p.pad_value : p.pad < 0 ? "auto" : "new";
-    BorderPadding border;
-    if (p.pad < 0 || pad_value == "auto") {
+    if (p.pad < 0) {
       require_labels(lv, what);
-      border = border_padding(lv);
-      if (p.pad < 0 && border.pad) pad = kAutoPadVoxels * std::size_t(p.downsample);
+      if (border_padding(lv).pad) pad = kAutoPadVoxels * std::size_t(p.downsample);
     }
-    if (pad > 0) {
-      double value = 0;
-      if (pad_value == "auto") {
-        value = double(border.value);
-      } else if (pad_value == "new") {
-        require_labels(lv, what);
-        value = value_range(lv).hi + 1;
-      } else {
-        try {
-          std::size_t pos = 0;
-          value = std::stod(pad_value, &pos);
-          if (pos != pad_value.size() || !std::isfinite(value)) throw std::invalid_argument("");
-        } catch (const std::exception&) {
-          throw UsageError("--pad-value \"" + pad_value + "\": expected a finite number, \"new\" or \"auto\"");
-        }
-      }
-      lv = padded(lv, pad, value);
-    }
+    if (pad > 0) lv = padded(lv, pad, pad_value_of(lv, pad_value, what));
     lv = lv.converted(VoxelType::i32);
   });
   // morph --labels <all> --ops MORPH_OPS [--downsample] --vote

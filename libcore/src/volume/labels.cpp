@@ -140,6 +140,26 @@ BorderPadding border_padding(const Volume& v) {
   return b;
 }
 
+double pad_value_of(const Volume& v, const std::string& spec, const std::string& what) {
+  if (spec == "auto") {
+    require_labels(v, what);
+    return double(border_padding(v).value);
+  }
+  if (spec == "new") {
+    require_labels(v, what);
+    return value_range(v).hi + 1;
+  }
+  double value = 0;
+  try {
+    std::size_t pos = 0;
+    value = std::stod(spec, &pos);
+    if (pos != spec.size() || !std::isfinite(value)) throw std::invalid_argument("");
+  } catch (const std::exception&) {
+    throw UsageError("--pad-value \"" + spec + "\": expected a finite number, \"new\" or \"auto\"");
+  }
+  return value;
+}
+
 Volume label_mask(const Volume& v, const std::vector<std::int64_t>& which, const std::string& what) {
   require_labels(v, what);
   const std::set<std::int64_t> want(which.begin(), which.end());

@@ -372,6 +372,23 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
   // full fillet and the flow would fill the hole.
   // (The complement counts only when it does not reach the working box's
   // faces: beyond them everything is outside, however large r.)
+  // The result: `box` (the working box's field, released here) on the whole
+  // grid, where every node outside the box is outside, re-distanced.
+  auto redistance = [&](std::vector<float>& box) {
+    stage.emplace("tighten.redistance");
+    std::vector<float> full(fd.count(), FLT_MAX / 4);
+    pm::parallel_for(std::size_t(0), wd.nz, [&](std::size_t kw) {
+      for (std::size_t jw = 0; jw < wd.ny; ++jw)
+        std::copy_n(box.begin() + long(wd.nx * (jw + wd.ny * kw)), wd.nx,
+                    full.begin() + long(wlo[0] + fd.nx * (jw + wlo[1] + fd.ny * (kw + wlo[2]))));
+    });
+    std::vector<float>().swap(box);
+    const std::vector<float> d = signed_distance(full, fd, gf, {});
+    res.distance = Volume(VoxelType::f32, fd, gf);
+    float* out = res.distance.data<float>();
+    const float sign = p.positive_inside ? -1.f : 1.f;
+    for (std::size_t c = 0; c < d.size(); ++c) out[c] = sign * d[c];
+  };
   const auto [dmin, dmax] = std::minmax_element(dS.begin(), dS.end());
   bool outside_on_faces = false;
   for (std::size_t k = 0; k < wd.nz && !outside_on_faces; ++k)
@@ -397,20 +414,7 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
       half.requested_radius = p.radius;
       return half;
     }
-    stage.emplace("tighten.redistance");
-    const std::vector<float> d = [&] {
-      std::vector<float> full(fd.count(), FLT_MAX / 4);
-      pm::parallel_for(std::size_t(0), wd.nz, [&](std::size_t kw) {
-        for (std::size_t jw = 0; jw < wd.ny; ++jw)
-          std::copy_n(dS.begin() + long(wd.nx * (jw + wd.ny * kw)), wd.nx,
-                      full.begin() + long(wlo[0] + fd.nx * (jw + wlo[1] + fd.ny * (kw + wlo[2]))));
-      });
-      return signed_distance(full, fd, gf, {});
-    }();
-    res.distance = Volume(VoxelType::f32, fd, gf);
-    float* out = res.distance.data<float>();
-    const float sign = p.positive_inside ? -1.f : 1.f;
-    for (std::size_t c = 0; c < d.size(); ++c) out[c] = sign * d[c];
+    redistance(dS);
     res.converged = true;
     res.radius = 0;
     res.requested_radius = p.radius;
@@ -507,22 +511,9 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
   res.radius = r;
   res.requested_radius = p.radius;
 
-  stage.emplace("tighten.redistance");
-  // The whole grid: outside the working box every node is outside.
-  std::vector<float> full(fd.count(), FLT_MAX / 4);
-  pm::parallel_for(std::size_t(0), wd.nz, [&](std::size_t kw) {
-    for (std::size_t jw = 0; jw < wd.ny; ++jw)
-      std::copy_n(phi.begin() + long(wd.nx * (jw + wd.ny * kw)), wd.nx,
-                  full.begin() + long(wlo[0] + fd.nx * (jw + wlo[1] + fd.ny * (kw + wlo[2]))));
-  });
-  std::vector<float>().swap(phi);
   std::vector<float>().swap(cur);
   std::vector<float>().swap(next);
-  const std::vector<float> d = signed_distance(full, fd, gf, {});
-  res.distance = Volume(VoxelType::f32, fd, gf);
-  float* out = res.distance.data<float>();
-  const float sign = p.positive_inside ? -1.f : 1.f;
-  for (std::size_t c = 0; c < d.size(); ++c) out[c] = sign * d[c];
+  redistance(phi);
   if (p.keep_mortar) {
     res.round = Volume(VoxelType::f32, fd, gf);
     res.fillet = Volume(VoxelType::f32, fd, gf);

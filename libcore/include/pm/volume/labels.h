@@ -64,6 +64,12 @@ struct BorderPadding {
   std::size_t border_labels = 0;  ///< distinct labels on the border
 };
 BorderPadding border_padding(const Volume& labels);
+/// The value of padding voxels from `--pad-value` / PAD_VALUE: "auto" (the
+/// border_padding value), "new" (one more than the largest label) or a finite
+/// number. \throw UsageError for anything else; InputError (naming `what`) when
+/// "auto" or "new" meets a volume that is not a label map.
+double pad_value_of(const Volume& labels, const std::string& spec, const std::string& what);
+
 /// Voxels of padding `--pad auto` adds when the border needs it.
 constexpr std::size_t kAutoPadVoxels = 3;
 
