@@ -290,10 +290,14 @@ TEST(EngineTypes, LikeNeighboursSitFartherApart) {
     }
     return like / unlike;
   };
+  // A checkerboard gives √2; 200 particles on a closed sphere cannot form
+  // one (grow_types grows one grain, which meets itself along seams), so the
+  // ratio lands near 1.19 (1.188 with today's arithmetic; 1.2 with libm's
+  // cotangent), the untyped packing near 1.0.
   const double plain = run(false), typed = run(true);
-  EXPECT_LT(plain, 1.15);
-  EXPECT_GT(typed, 1.2);
-  EXPECT_GT(typed, plain + 0.1);
+  EXPECT_LT(plain, 1.1);
+  EXPECT_GT(typed, 1.15);
+  EXPECT_GT(typed, plain + 0.15);
 }
 
 // A perfect square lattice (on a sphere so large that the patch is flat to

@@ -14,12 +14,6 @@ double engine_beta() {
   return beta;
 }
 
-double normal_weight(double d) {
-  if (d > kGamma) return 1.0;
-  if (d <= 0) return 0.0;
-  return std::cos(0.5 * kPi * (kGamma - d) / kGamma);
-}
-
 std::uint64_t mix64(std::uint64_t z) {
   z += 0x9E3779B97F4A7C15ull;
   z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
@@ -157,21 +151,6 @@ void set_quad_types(EngineParams& p) {
   p.alternate_types = true;
   p.ideal_neighbours = 8;
   p.recolour_sweeps = engine_constants::kQuadRecolourSweeps;
-}
-
-double particle_pair_energy(ParticleEnergy e, double r, double& dE_dr) {
-  if (r >= 1.0) {
-    dE_dr = 0;
-    return 0;
-  }
-  if (e == ParticleEnergy::radial) {
-    dE_dr = 1.0 - 1.0 / (r * r);
-    return 1.0 / r - 2.0 + r;
-  }
-  const double a = 0.5 * kPi * r;
-  const double sn = std::sin(a), cs = std::cos(a);
-  dE_dr = 0.5 * kPi * (1.0 - 1.0 / (sn * sn));
-  return cs / sn + a - 0.5 * kPi;
 }
 
 double particle_ideal_energy(ParticleEnergy e) {
