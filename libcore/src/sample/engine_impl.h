@@ -400,8 +400,12 @@ void ParticleEngine<C>::build_lists() {
       if (!P.fixed) {
         const double reach =
             radius_bound(step_factor * step_factor * P.spacing) + step_factor * P.spacing + kListSkin * P.spacing;
+        // Skip the neighbour bins farther than the longest list reach along an axis.
+        int m[3];
+        bins_.axis_masks(c, P.p.x, reach + kListSkin * d_max_, m);
         for (int k = 0; k < 27; ++k) {
           if (nb[k] < 0) continue;
+          if (!((m[0] >> (k % 3)) & 1) || !((m[1] >> ((k / 3) % 3)) & 1) || !((m[2] >> (k / 9)) & 1)) continue;
           const std::size_t cc = std::size_t(nb[k]);
           for (std::uint32_t q = bins_.begin(cc); q < bins_.end(cc); ++q) {
             const double rq = reach + kListSkin * parts_[q].spacing;
