@@ -178,6 +178,8 @@ EXTRA = [
     ("baseline", "mode bogus", ["bogus", "-i", SDF, "-o", o(".ply")], 2, "bogus"),
     ("baseline", "no surface", ["mc", "-i", FAR, "--iso", "0", "-o", o(".ply")], 1, FAR),
     ("multiparticles", "--spacing 0", ["--materials", MASK, "--spacing", "0", "-o", o(".ply")], 2, "spacing"),
+    ("particles", "--coarse-tolerance -1",
+     ["--implicit", "sphere", "--spacing", "0.3", "-o", o(".ply"), "--coarse-tolerance", "-1"], 2, "coarse tolerance"),
     # unsupported extensions of the other outputs and an unknown --frame (issue 21), inputs missing
     ("tetlabel", "--tets .obj", [MISSING_M, "--implicit", "sphere", "-o", o(".ply"), "--tets", o(".obj")], 2, o(".obj")),
     ("tetlabel", "--frame xyz", [MISSING_M, "--implicit", "sphere", "-o", o(".ply"), "--frame", "xyz"], 2, "--frame"),

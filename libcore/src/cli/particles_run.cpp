@@ -125,6 +125,11 @@ void add_particles_options(CLI::App& app, ParticlesRun& cfg) {
                                "Converged when the system energy drops by less than this "
                                "fraction in one iteration")
                     ->capture_default_str();
+  cfg.coarse_tol_opt =
+      app.add_option("--coarse-tolerance", cfg.params.coarse_tolerance,
+                     "Coarse-to-fine: the tolerance of every level but the last, at least --tolerance (a coarse "
+                     "level is split and relaxed again; 0 = --tolerance; --quads: --tolerance unless given)")
+          ->capture_default_str();
   app.add_option("--population-tolerance", cfg.params.population_tolerance,
                  "Stop when converged and at most this fraction of particles wants to split or die (0 = none)")
       ->capture_default_str();
@@ -211,6 +216,8 @@ void run_particles(ParticlesRun& cfg, const CommonFlags& flags) {
   if (p.quads && (volume || !scenario.empty() || !hp_field.empty()))
     throw pm::UsageError("--quads samples a surface: not with --volume, --scenario or --field");
   if (p.quads && !tol_opt->count()) p.tolerance = pm::engine_constants::kQuadTolerance;
+  // Quad packing recolours over its first sweeps, whichever level they fall in: its levels keep one tolerance.
+  if (p.quads && !cfg.coarse_tol_opt->count()) p.coarse_tolerance = 0;
   if (volume) {
     if (!scenario.empty() || !hp_field.empty() || !seeds_path.empty() || p.count)
       throw pm::UsageError("--scenario, --field, --init and --count do not apply with --volume");
@@ -276,6 +283,7 @@ void run_particles(ParticlesRun& cfg, const CommonFlags& flags) {
                       {"kernel", kernel},
                       {"energy", energy},
                       {"tolerance", p.tolerance},
+                      {"coarse_tolerance", p.coarse_tolerance},
                       {"max_iters", p.max_iters},
                       {"count", p.count},
                       {"init_count", p.init_count},

@@ -231,6 +231,7 @@ ParticleResult SurfaceRun::run(const std::vector<Vec3>& seeds) {
     }
     const std::string label =
         levels > 0 ? "level " + std::to_string(levels - level + 1) + "/" + std::to_string(levels + 1) : "relax";
+    e_.set_tolerance(level > 0 ? std::max(p_.tolerance, p_.coarse_tolerance) : p_.tolerance);
     const Engine::LevelResult lr = e_.relax(label, p_.count != 0);
     conv = lr.converged;
     res.iterations += lr.iterations;
@@ -303,6 +304,8 @@ ParticleResult distribute_particles(const ScalarField& field, const std::vector<
     throw UsageError("density must be >= 0 particles per radian, got " + engine_fmt(params.density));
   if (!(params.alpha_cap >= 1)) throw UsageError("alpha cap must be >= 1, got " + engine_fmt(params.alpha_cap));
   if (!(params.tolerance > 0)) throw UsageError("tolerance must be > 0, got " + engine_fmt(params.tolerance));
+  if (!(params.coarse_tolerance >= 0))
+    throw UsageError("coarse tolerance must be >= 0, got " + engine_fmt(params.coarse_tolerance));
   if (!(params.population_tolerance >= 0))
     throw UsageError("population tolerance must be >= 0, got " + engine_fmt(params.population_tolerance));
   if (params.max_iters < 1) throw UsageError("max iterations must be >= 1, got " + std::to_string(params.max_iters));

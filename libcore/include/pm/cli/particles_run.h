@@ -35,6 +35,7 @@ struct ParticlesRun {
   CLI::Option* density = nullptr;
   CLI::Option* lattice = nullptr;
   CLI::Option* tol_opt = nullptr;
+  CLI::Option* coarse_tol_opt = nullptr;
   CLI::Option* iters_opt = nullptr;
   CLI::Option* ctf = nullptr;
   bool volume = false;

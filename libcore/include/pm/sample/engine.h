@@ -472,6 +472,8 @@ class ParticleEngine {
 
   // --- scale ------------------------------------------------------------
   void set_scale(double k);
+  /// The convergence tolerance of the next relax() calls.
+  void set_tolerance(double t) { p_.tolerance = t; }
   double scale() const { return scale_; }
   double planar_spacing() const { return s_; }
   void refresh_spacings() {

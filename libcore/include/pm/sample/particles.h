@@ -39,6 +39,10 @@ struct ParticleParams {
   ParticleEnergy energy = ParticleEnergy::cotangent;
   double tolerance = 0.0015;   ///< converged when the system energy Σ E_i drops by less than this
                                ///< fraction in one sweep
+  /// Coarse-to-fine: the tolerance of every level but the last (at least
+  /// `tolerance`): a coarse level only has to be near its packing, since its
+  /// particles are split into four and relaxed again (SPEC's 0.15%).
+  double coarse_tolerance = 0.0015;
   int max_iters = 2000;        ///< sweeps per level (coarse-to-fine runs several levels)
   int population_interval = 50;  ///< iterations between population checks while not converged
   bool population_control = true;  ///< split/delete particles towards the ideal energy
