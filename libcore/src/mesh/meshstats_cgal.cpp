@@ -13,7 +13,7 @@
 
 namespace pm {
 
-bool self_intersecting_faces(const Mesh& m, std::vector<std::pair<int, int>>& out) {
+bool self_intersecting_faces(const Mesh& m, std::vector<std::pair<int, int>>& out, bool known_polygon_mesh) {
   using K = CGAL::Exact_predicates_inexact_constructions_kernel;
   using SM = CGAL::Surface_mesh<K::Point_3>;
   namespace PMP = CGAL::Polygon_mesh_processing;
@@ -24,7 +24,7 @@ bool self_intersecting_faces(const Mesh& m, std::vector<std::pair<int, int>>& ou
   std::vector<std::array<std::size_t, 3>> polys;  // fixed-size polygons: no allocation per face
   polys.reserve(m.faces.size());
   for (const auto& f : m.faces) polys.push_back({std::size_t(f[0]), std::size_t(f[1]), std::size_t(f[2])});
-  if (!PMP::is_polygon_soup_a_polygon_mesh(polys)) return false;
+  if (!known_polygon_mesh && !PMP::is_polygon_soup_a_polygon_mesh(polys)) return false;
   SM sm;
   PMP::polygon_soup_to_polygon_mesh(pts, polys, sm);  // faces keep the soup's order
   std::vector<std::pair<SM::Face_index, SM::Face_index>> pairs;

@@ -11,13 +11,13 @@
 #include <cstdint>
 #include <string>
 #include <unordered_map>
-#include <unordered_set>
 #include <vector>
 
 #include "pm/base/error.h"
 #include "pm/base/parallel.h"
 #include "pm/field/junctions.h"
 #include "pm/mesh/meshstats.h"
+#include "pm/mesh/topology.h"
 
 namespace pm {
 
@@ -33,6 +33,70 @@ double triangle_radius_ratio(const Vec3& a, const Vec3& b, const Vec3& c) {
 namespace {
 
 using Tri = std::array<int, 3>;
+
+// A set of undirected edge keys (undirected()): open addressing with linear
+// probing and tombstones in one flat table, no allocation per edge (the
+// surfaces have hundreds of thousands of edges, inserted anew every round).
+class EdgeSet {
+ public:
+  void reset(std::size_t expected) {
+    std::size_t size = 16;
+    while (size < 2 * expected) size *= 2;
+    slots_.assign(size, kEmpty);
+    used_ = 0;
+  }
+  bool count(std::uint64_t key) const {
+    for (std::size_t h = slot(key);; h = (h + 1) & (slots_.size() - 1)) {
+      if (slots_[h] == key) return true;
+      if (slots_[h] == kEmpty) return false;
+    }
+  }
+  void insert(std::uint64_t key) {
+    if (2 * (used_ + 1) > slots_.size()) grow();
+    std::size_t tomb = kNone;
+    for (std::size_t h = slot(key);; h = (h + 1) & (slots_.size() - 1)) {
+      if (slots_[h] == key) return;
+      if (slots_[h] == kTomb && tomb == kNone) tomb = h;
+      if (slots_[h] == kEmpty) {
+        if (tomb != kNone) {
+          slots_[tomb] = key;
+        } else {
+          slots_[h] = key;
+          ++used_;  // tombstones keep counting as used until the next grow
+        }
+        return;
+      }
+    }
+  }
+  void erase(std::uint64_t key) {
+    for (std::size_t h = slot(key);; h = (h + 1) & (slots_.size() - 1)) {
+      if (slots_[h] == key) {
+        slots_[h] = kTomb;
+        return;
+      }
+      if (slots_[h] == kEmpty) return;
+    }
+  }
+
+ private:
+  static constexpr std::uint64_t kEmpty = ~std::uint64_t(0), kTomb = kEmpty - 1;
+  static constexpr std::size_t kNone = ~std::size_t(0);
+  std::size_t slot(std::uint64_t key) const {
+    key ^= key >> 33;
+    key *= 0xff51afd7ed558ccdull;
+    key ^= key >> 33;
+    return std::size_t(key) & (slots_.size() - 1);
+  }
+  void grow() {
+    std::vector<std::uint64_t> old;
+    old.swap(slots_);
+    reset(old.size());
+    for (std::uint64_t k : old)
+      if (k != kEmpty && k != kTomb) insert(k);
+  }
+  std::vector<std::uint64_t> slots_;
+  std::size_t used_ = 0;
+};
 
 std::uint64_t undirected(int a, int b) {
   const std::uint32_t lo = std::uint32_t(std::min(a, b)), hi = std::uint32_t(std::max(a, b));
@@ -92,8 +156,7 @@ class Improver {
         halves_.push_back({undirected(m_.faces[f][k], m_.faces[f][(k + 1) % 3]), int(3 * f + k)});
     std::sort(halves_.begin(), halves_.end());
     opp_.assign(3 * nf, -1);
-    edges_.clear();
-    edges_.reserve(halves_.size() / 2 + 1);
+    edges_.reset(halves_.size() / 2 + 1);
     valence_.assign(nv, 0);
     fixed_.assign(nv, 0);
     curve_nb_.assign(nv, {-1, -1});
@@ -363,7 +426,7 @@ class Improver {
   double cos_fold_;
   double mean_edge_ = 1, tol_ = 0;
   std::vector<int> opp_;
-  std::unordered_set<std::uint64_t> edges_;
+  EdgeSet edges_;
   std::vector<std::pair<std::uint64_t, int>> halves_;  // build_opposites' scratch
   std::vector<int> valence_;
   std::vector<char> fixed_;  // junction vertices (several sheets, or an edge with != 2 faces)
@@ -378,10 +441,14 @@ class Improver {
 // mesh itself. Interfaces: each material's closed surface in turn
 // (pm::material_self_intersections; a material whose surface is not a
 // manifold polygon mesh is skipped).
-std::vector<std::pair<int, int>> crossings(const Mesh& m, const std::vector<int>* materials) {
+// `flipped_from_checked`: m came from a checked polygon mesh by edge flips
+// (never onto an existing edge) and vertex moves, which keep every vertex's
+// link one cycle, so it is one too.
+std::vector<std::pair<int, int>> crossings(const Mesh& m, const std::vector<int>* materials,
+                                           bool flipped_from_checked) {
   if (materials) return material_self_intersections(m, *materials);
   std::vector<std::pair<int, int>> pairs;
-  if (!self_intersecting_faces(m, pairs))
+  if (!self_intersecting_faces(m, pairs, flipped_from_checked))
     throw InputError("improve_surface: the improved mesh is not a manifold polygon mesh (internal error)");
   return pairs;
 }
@@ -390,16 +457,31 @@ std::vector<std::pair<int, int>> crossings(const Mesh& m, const std::vector<int>
 // closer than an edge (thin parts), they can still make triangles cross.
 // Check with CGAL, switch off flips (then moves) around every new crossing
 // (and the 1-rings), and redo from the original mesh; a few rounds suffice.
+// A closed manifold (every edge in two triangles, every vertex one fan) whose
+// triangles are oriented consistently (no directed edge twice) is a polygon
+// mesh for CGAL.
+bool closed_oriented_manifold(const Mesh& m) {
+  if (!mesh_topology(m).closed_manifold()) return false;
+  std::vector<std::uint64_t> directed;
+  directed.reserve(3 * m.faces.size());
+  for (const Tri& t : m.faces)
+    for (int k = 0; k < 3; ++k)
+      directed.push_back(std::uint64_t(std::uint32_t(t[k])) | (std::uint64_t(std::uint32_t(t[(k + 1) % 3])) << 32));
+  std::sort(directed.begin(), directed.end());
+  return std::adjacent_find(directed.begin(), directed.end()) == directed.end();
+}
+
 SurfaceImproveStats improve_guarded(Mesh& mesh, const Sheets& sh, bool single, const std::vector<int>* materials,
                                     const SurfaceImproveParams& p) {
   const Mesh original = mesh;
-  const std::size_t before = crossings(original, materials).size();
+  const bool checked = single && closed_oriented_manifold(original);
+  const std::size_t before = crossings(original, materials, checked).size();
   std::vector<char> frozen(mesh.vertices.size(), 0);
   SurfaceImproveStats st;
   for (int attempt = 0;; ++attempt) {
     Improver im(mesh, sh, single, p, frozen);
     st = im.run();
-    const auto pairs = crossings(mesh, materials);
+    const auto pairs = crossings(mesh, materials, checked);
     st.self_intersections = pairs.size();
     if (pairs.size() <= before || attempt == 4) break;
     std::vector<char> seed(mesh.vertices.size(), 0);

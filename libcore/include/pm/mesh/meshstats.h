@@ -83,7 +83,10 @@ std::vector<std::string> check_requirements(const MeshQuality& q, const std::str
 int count_self_intersections(const Mesh& m);
 /// The intersecting pairs of non-adjacent triangles as face indices of `m`;
 /// false (and no pairs) when the mesh is not a manifold polygon mesh.
-bool self_intersecting_faces(const Mesh& m, std::vector<std::pair<int, int>>& out);
+/// `known_polygon_mesh`: the caller guarantees that it is one (e.g. edge
+/// flips and vertex moves of a mesh that was checked), so CGAL's soup check,
+/// about a third of the cost, is skipped.
+bool self_intersecting_faces(const Mesh& m, std::vector<std::pair<int, int>>& out, bool known_polygon_mesh = false);
 /// Intersecting pairs of non-adjacent triangles of an interface mesh (face
 /// properties `label_a`, `label_b`), tested on each material's closed surface
 /// in turn (the faces with label L on one side: L's surface meets itself or
