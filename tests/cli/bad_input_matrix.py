@@ -169,6 +169,7 @@ EXTRA = [
     ("morph", "--iterations 0", [MASK, o(".nrrd"), "--op", "dilate", "--iterations", "0"], 2, "--iterations"),
     ("morph", "--downsample 0", [MASK, o(".nrrd"), "--downsample", "0"], 2, "--downsample"),
     ("gradlimit", "--delta -1", [SDF, o(".nrrd"), "--delta", "-1"], 2, "--delta"),
+    ("gradlimit", "--far-field sideways", [SDF, o(".nrrd"), "--far-field", "sideways"], 2, "--far-field"),
     ("mcinit", "--decimate 0", [SDF, o(".ply"), "--iso", "0", "--decimate", "0"], 2, "--decimate"),
     ("tighten", "--radius 0", [MASK, o(".nrrd"), "-r", "0"], 2, "radius"),
     ("medialaxis", "--cos-alpha 2", [SDF, o(".ply"), "--cos-alpha", "2"], 2, "--cos-alpha"),

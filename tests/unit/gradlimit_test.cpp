@@ -189,6 +189,35 @@ TEST(GradLimit, CeilingGivesTheCappedFieldForBothMethods) {
   EXPECT_THROW(gradient_limit(h0, bad), UsageError);
 }
 
+// flat_far_field caps at the largest known value plus δ × 2 voxel
+// diagonals: every known voxel, and every voxel whose free value lies below
+// the cap, comes out as without it; the rest sits at the cap; the slope
+// bound holds everywhere.
+TEST(GradLimit, FlatFarFieldKeepsEveryValueBelowTheCap) {
+  Volume h0(VoxelType::f32, Dims{40, 36, 30}, Geometry::with_spacing(1, 1.2, 0.8));
+  const Volume r0 = rough(h0.dims(), h0.geometry());
+  double hmax = 0;
+  for (std::size_t v = 0; v < h0.count(); ++v) {  // known in a slab at x < 4 (as a band near a surface)
+    h0.set(v, v % 40 < 4 ? 0.2 * r0.get(v) : 0.0);
+    hmax = std::max(hmax, h0.get(v));
+  }
+  GradLimitParams p;
+  p.delta = 0.1;
+  const GradLimitResult free = gradient_limit(h0, p);
+  p.flat_far_field = true;
+  const GradLimitResult flat = gradient_limit(h0, p);
+  const double cap = hmax + 2 * p.delta * std::sqrt(1 + 1.2 * 1.2 + 0.8 * 0.8);
+  EXPECT_NEAR(flat.cap, cap, 1e-12);
+  std::size_t capped = 0;
+  for (std::size_t v = 0; v < h0.count(); ++v) {
+    if (h0.get(v) > 0) ASSERT_EQ(flat.h.get(v), free.h.get(v)) << v;
+    ASSERT_EQ(flat.h.get(v), std::min(free.h.get(v), double(float(cap)))) << v;
+    capped += free.h.get(v) > cap;
+  }
+  EXPECT_GT(capped, h0.count() / 10);  // the cap did bind
+  EXPECT_LE(face_slope(flat.h), p.delta * 1.01);
+}
+
 TEST(GradLimit, BadInput) {
   Volume h0(VoxelType::f32, Dims{3, 3, 3});
   for (std::size_t i = 0; i < h0.count(); ++i) h0.set(i, 1.0);

@@ -26,6 +26,12 @@ void add_gradlimit_options(CLI::App& app, GradLimitRun& cfg) {
                  "propagate (one ordered pass, exact 26-neighbour bound) or upwind "
                  "(Persson's explicit iteration; slow, for reference)")
       ->capture_default_str();
+  app.add_option("--far-field", cfg.far_field,
+                 "flat: h stops growing at the largest input value (plus delta x 2 voxel diagonals), so every "
+                 "voxel below that, every input voxel among them, is as with grow, and the far field is not "
+                 "filled (about 3x faster around a surface); grow: h + delta x distance everywhere")
+      ->check(CLI::IsMember({"flat", "grow"}))
+      ->capture_default_str();
   app.add_flag("--nan-unknown", cfg.params.nonfinite_unknown,
                "Treat NaN/Inf voxels as unknown instead of refusing them");
   app.add_option("--inward", cfg.inward,
@@ -65,6 +71,7 @@ void run_gradlimit(GradLimitRun& cfg, const CommonFlags& flags) {
     m << "--delta " << p.delta << "; expected > 0 (e.g. 0.3)";
     throw pm::UsageError(m.str());
   }
+  p.flat_far_field = cfg.far_field == "flat";
   if (inward.empty() && (band != 0 || max_size != 0))
     throw pm::UsageError("--band and --max-size need --inward SURFACE");
   if (!inward.empty() && band < 0)
@@ -76,6 +83,7 @@ void run_gradlimit(GradLimitRun& cfg, const CommonFlags& flags) {
                       {"tolerance", p.tolerance},
                       {"method", method},
                       {"nan_unknown", p.nonfinite_unknown},
+                      {"far_field", cfg.far_field},
                       {"gzip", gzip}};
   const pm::Volume h = pm::read_volume(in);
   pm::GradLimitResult r;
@@ -84,6 +92,7 @@ void run_gradlimit(GradLimitRun& cfg, const CommonFlags& flags) {
     try {
       if (inward.empty()) {
         r = pm::gradient_limit(h, p);
+        st["parameters"]["cap"] = r.cap;
       } else {
         const pm::Mesh surface = pm::read_mesh(inward);
         if (surface.vertices.empty()) throw pm::InputError(pm::quote(inward) + " has no vertices");

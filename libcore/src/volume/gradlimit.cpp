@@ -255,9 +255,12 @@ GradLimitResult gradient_limit(const Volume& in, const GradLimitParams& p) {
     throw InputError("gradient_limit: no voxel has a finite h > 0; expected a sizing field with positive values "
                      "(h <= 0 marks unknown voxels)");
 
+  double ceiling = p.ceiling;
+  if (p.flat_far_field) ceiling = std::min(ceiling, hmax + 2 * p.delta * g.dist(1, 1, 1));
+  res.cap = ceiling;
   std::vector<double> h;
   if (p.method == GradLimitMethod::propagate) {
-    h = propagate(g, h0, p.delta, p.ceiling);
+    h = propagate(g, h0, p.delta, ceiling);
     res.iterations = 1;
   } else {
     // Unknown voxels start above any value the extension can take.
@@ -267,7 +270,7 @@ GradLimitResult gradient_limit(const Volume& in, const GradLimitParams& p) {
     for (double& x : h)
       if (x == kInf) x = cap;
     res.iterations = upwind(g, h, p.delta, p.tolerance, p.max_iterations);
-    for (double& x : h) x = std::min(x, p.ceiling);
+    for (double& x : h) x = std::min(x, ceiling);
   }
   for (std::size_t v = 0; v < h.size(); ++v)
     if (h0[v] < kInf && h[v] < h0[v]) ++res.lowered;

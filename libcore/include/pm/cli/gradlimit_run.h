@@ -15,6 +15,7 @@ struct GradLimitRun {
   std::string input;
   std::string output;
   std::string method = "propagate";
+  std::string far_field = "flat";
   pm::GradLimitParams params;
   std::string inward;
   double band = 0;

@@ -52,6 +52,13 @@ struct GradLimitParams {
   /// little higher, still within the gradient bound (brain mask interior
   /// sizing: 1 of 16.7M voxels, by 3e-4 relative; 7.5 s -> 2 s).
   double ceiling = std::numeric_limits<double>::infinity();
+  /// Cap the result at the largest known value plus δ times two voxel
+  /// diagonals (and at `ceiling`): every voxel whose limited value lies below
+  /// that, every known voxel among them, gets the value it gets without a
+  /// cap, and the far field stays flat instead of growing by δ per unit of
+  /// distance, which saves filling the whole grid (a band around a surface
+  /// is a few percent of it). min(h, c) of a δ-Lipschitz h is δ-Lipschitz.
+  bool flat_far_field = false;
 };
 
 struct GradLimitResult {
@@ -64,7 +71,8 @@ struct GradLimitResult {
   /// divided by delta (propagate: 1 up to float rounding, about
   /// 1e-7 h / (delta * spacing)).
   double max_slope_ratio = 0;
-  /// interior_sizing: the cap applied (max_size, or the largest kept h).
+  /// The cap applied: interior_sizing's max_size (or the largest kept h);
+  /// gradient_limit's with flat_far_field (else `ceiling`, +inf = none).
   double cap = 0;
 };
 
