@@ -132,10 +132,20 @@ double ParticleEngine<C>::energy_at(const Vec3& x, const Vec3& n, double a, std:
   double e = 0;
   Vec3 force;
   int count = 0;
+  // Sizing mode: β/(k min(h_i, h_j)) = max(β/(k h_i), β/(k h_j)) exactly
+  // (rounding is monotone), so each side's part is divided out once.
+  const bool sizing = p_.sizing_mode;
+  const double part = sizing ? beta_ / (scale_ * a) : 0.0;
   for (const Cand& c : cs) {
     const Vec3 d = x - c.x;
     const double d2 = norm2(d);
-    const double al = alpha(a, c.attr, t, c.type);
+    double al;
+    if (sizing) {
+      al = std::max(std::max(part, c.part), alpha_floor_);
+      if (typed_) al /= p_.type_scale[t][c.type];
+    } else {
+      al = alpha(a, c.attr, t, c.type);
+    }
     if (al * al * d2 >= 1.0) continue;
     ++count;
     const double w = c.weighted ? normal_weight(dot(n, c.n)) : 1.0;

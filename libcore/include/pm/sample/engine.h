@@ -584,6 +584,7 @@ class ParticleEngine {
   struct Cand {
     Vec3 x, n;
     double attr;
+    double part;  // sizing mode: β/(k h_j), so that α_ij = max(part_i, part_j, floor) without a division
     std::uint8_t type;
     bool weighted;
   };
@@ -626,7 +627,8 @@ class ParticleEngine {
   double energy_at(const Vec3& x, const Vec3& n, double a, std::uint8_t t, const std::vector<Cand>& cs, Vec3* v,
                    int* nbrs) const;
   Cand cand_of(const Particle& i, const Particle& o) const {
-    return {o.p.x, o.p.n, o.attr, o.type, c_.weighted(i.p) && c_.same_cell(i.p, o.p)};
+    return {o.p.x, o.p.n, o.attr, p_.sizing_mode ? beta_ / (scale_ * o.attr) : 0.0, o.type,
+            c_.weighted(i.p) && c_.same_cell(i.p, o.p)};
   }
   bool sees(const Particle& i, const Particle& o) const { return c_.sees(i.p, o.p, o.fixed); }
   void gather(const Vec3& x, double reach, std::size_t self, std::size_t cell, std::vector<Cand>& out) const;
