@@ -158,6 +158,10 @@ void add_particles_options(CLI::App& app, ParticlesRun& cfg) {
                  "spacing per iteration, re-checking it every 8 iterations (0 = off)")
       ->check(CLI::Range(0.0, 0.99))
       ->capture_default_str();
+  app.add_option("--step-factor", cfg.params.step_factor,
+                 "Adaptive step: a particle's step grows by this factor after a first-try acceptance and "
+                 "shrinks by it after a rejection (> 1; 0 = 3, or the dissertation's 10 with --quads)")
+      ->capture_default_str();
   app.add_flag("--quads", cfg.params.quads,
                "Quad packing (Chapter 7): two particle types, like pairs √2 farther apart than unlike ones, "
                "settling towards a checkerboard on a square lattice with unlike neighbours --spacing apart; "
@@ -293,6 +297,7 @@ void run_particles(ParticlesRun& cfg, const CommonFlags& flags) {
                       {"population_tolerance", p.population_tolerance},
                       {"seed_thinning", p.seed_thinning},
                       {"settled_move", p.settled_move},
+                      {"step_factor", p.step_factor},
                       {"quads", p.quads}};
   const std::unique_ptr<pm::ScalarField> field = load_field(implicit, input, kernel, p.iso);
   std::unique_ptr<pm::SizingField> sizing;

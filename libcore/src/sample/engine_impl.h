@@ -281,13 +281,13 @@ void ParticleEngine<C>::update(std::size_t i, std::size_t cell, std::vector<Cand
         P.spacing = local_spacing(attr, P.type);
         P.energy = e1;
         P.delta = e1 - e0;
-        P.lambda = first ? std::min(lambda * kLambdaFactor, lambda_max) : lambda;
+        P.lambda = first ? std::min(lambda * p_.step_factor, lambda_max) : lambda;
         ls.field_evaluations += pr.evaluations;
         return;
       }
     }
     ++ls.rejected;
-    lambda /= kLambdaFactor;
+    lambda /= p_.step_factor;
     if (lambda <= kLambdaMin) {
       P.lambda = kLambdaMin;
       ls.field_evaluations += pr.evaluations;
@@ -534,20 +534,39 @@ double ParticleEngine<C>::sweep(double& energy) {
     energy += q.energy;
     max_move_ = std::max(max_move_, q.moved);
   }
-  if (p_.settled_move > 0) {
-    // A particle is settled when it and everything near it moved less than
-    // settled_move spacings in this sweep; any larger move nearby wakes it.
-    for (std::size_t i = 0; i < parts_.size(); ++i) {
-      Particle& q = parts_[i];
-      if (q.fixed) continue;
-      bool calm = q.moved < p_.settled_move;
-      if (calm && use_lists_)
-        for (std::uint32_t k = nbr_start_[i]; k < nbr_start_[i + 1] && calm; ++k)
-          calm = parts_[nbr_[k]].moved < p_.settled_move;
-      q.quiet = calm && use_lists_ ? std::uint16_t(std::min<int>(q.quiet + 1, 60000)) : 0;
-    }
-  }
+  if (p_.settled_move > 0) settle_marks();
   return -2 * de;
+}
+
+// A particle is settled when it moved less than settled_move spacings in
+// this sweep and no particle that moved more lies within that particle's
+// reach (the interaction radius its spacing may grow to, plus one spacing
+// of trial): the movers wake their neighbourhoods, everyone else counts one
+// more quiet sweep. The bins are those of the sweep or of the lists (their
+// particles drifted at most d_max or the list skin, both inside the 3x3x3
+// block). Marks are set, not counted: the result does not depend on order.
+template <class C>
+void ParticleEngine<C>::settle_marks() {
+  using namespace engine_constants;
+  const std::size_t n = parts_.size();
+  std::size_t movers = 0;
+  for (const Particle& q : parts_) movers += !q.fixed && q.moved >= p_.settled_move;
+  if (double(movers) > kWakeScanShare * double(n)) {
+    for (Particle& q : parts_) q.quiet = 0;
+    return;
+  }
+  awake_.assign(n, 0);
+  const double slack = varying() ? kSpacingSlack : 1.0;
+  for (std::size_t j = 0; j < n; ++j) {
+    const Particle& P = parts_[j];
+    if (P.fixed || P.moved < p_.settled_move) continue;
+    awake_[j] = 1;
+    for_each_near(pos_[j], radius_bound(slack * P.spacing) + P.spacing, [&](std::size_t q) { awake_[q] = 1; });
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    Particle& q = parts_[i];
+    q.quiet = awake_[i] || q.fixed ? 0 : std::uint16_t(std::min<int>(q.quiet + 1, 60000));
+  }
 }
 
 template <class C>
@@ -917,6 +936,8 @@ typename ParticleEngine<C>::LevelResult ParticleEngine<C>::relax(const std::stri
   // relative to the system energy (the sweep's sum, accurate enough as a
   // scale); not disturbed by the staleness of Gauss-Seidel energies.
   int since = 0, refills = 0;
+  int interval = p_.first_population_interval > 0 ? std::min(p_.first_population_interval, p_.population_interval)
+                                                  : p_.population_interval;
   for (Particle& q : parts_) q.quiet = 0;
   for (int it = 0; it < p_.max_iters; ++it) {
     Stopwatch sw;
@@ -953,8 +974,9 @@ typename ParticleEngine<C>::LevelResult ParticleEngine<C>::relax(const std::stri
                     e > 0 ? 100 * change / e : 0.0);
       progress.update(std::size_t(it + 1), detail);
     }
-    if (conv || since >= p_.population_interval) {
+    if (conv || since >= interval) {
       since = 0;
+      interval = std::min(2 * interval, p_.population_interval);
       Stopwatch sp;
       bool changed = false;
       if (p_.alternate_types) {

@@ -409,6 +409,8 @@ MultiParticleResult distribute_multi_particles(const MaterialSet& m, const std::
     throw UsageError("reprojection steps must be >= 1, got " + std::to_string(p.reproject_steps));
   if (!(p.settled_move >= 0 && p.settled_move < 1))
     throw UsageError("settled move must be in [0, 1) spacings, got " + engine_fmt(p.settled_move));
+  if (!(p.step_factor > 1))
+    throw UsageError("step factor must be > 1, got " + engine_fmt(p.step_factor));
   MultiRun run(m, dom, resolution, sizing, p);
   return run.run(seeds);
 }

@@ -21,7 +21,9 @@ namespace {
 
 using Engine = ParticleEngine<SurfaceConstraint>;
 using Point = SurfaceConstraint::Point;
+using engine_constants::kLambdaFactor;
 using engine_constants::kPi;
+using engine_constants::kSurfaceStepFactor;
 using engine_constants::kPlaceSteps;
 
 constexpr int kMaxLevels = 8;              // coarse-to-fine levels at most
@@ -92,6 +94,8 @@ class SurfaceRun {
     e.density = p.density;
     e.alpha_cap = p.alpha_cap;
     if (p.quads) set_quad_types(e);
+    if (!(p.step_factor > 0)) e.step_factor = p.quads ? kLambdaFactor : kSurfaceStepFactor;
+    if (!p.quads) e.first_population_interval = engine_constants::kFirstPopulationInterval;
     return e;
   }
   int coarse_levels(double base) const {
@@ -318,6 +322,8 @@ ParticleResult distribute_particles(const ScalarField& field, const std::vector<
     throw UsageError("seed thinning must be in [0, 2) spacings, got " + engine_fmt(params.seed_thinning));
   if (!(params.settled_move >= 0 && params.settled_move < 1))
     throw UsageError("settled move must be in [0, 1) spacings, got " + engine_fmt(params.settled_move));
+  if (!(params.step_factor == 0 || params.step_factor > 1))
+    throw UsageError("step factor must be > 1 (or 0 = default), got " + engine_fmt(params.step_factor));
   SurfaceRun run(field, sizing, params);
   return run.run(seeds);
 }

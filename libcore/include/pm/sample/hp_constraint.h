@@ -110,6 +110,7 @@ struct HpParticleParams {
   bool progress = true;
   double settled_move = 0;
   int reproject_steps = 6;  ///< Newton steps after a tangent move
+  double step_factor = engine_constants::kLambdaFactor;  ///< adaptive step factor (> 1), see EngineParams
 };
 
 struct HpParticleResult {

@@ -77,6 +77,9 @@ struct ParticleParams {
   /// anchors its component).
   double seed_thinning = 0;
   int reproject_steps = engine_constants::kReprojectSteps;  ///< (Gauss-)Newton steps after a tangent move (>= 1)
+  /// Adaptive step: λ_i × this after a first-try acceptance, ÷ after a
+  /// rejection (> 1; 0 = kSurfaceStepFactor, or SPEC's kLambdaFactor with `quads`).
+  double step_factor = 0;
   /// Quad packing (SPEC §7, issue #20): two particle types, mixed at random
   /// (half each) at initialisation; like pairs repel √2 farther than unlike
   /// ones (pm::set_quad_types), so the packing settles towards a checkerboard
