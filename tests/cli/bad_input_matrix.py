@@ -181,6 +181,13 @@ EXTRA = [
     ("multiparticles", "--spacing 0", ["--materials", MASK, "--spacing", "0", "-o", o(".ply")], 2, "spacing"),
     ("particles", "--coarse-tolerance -1",
      ["--implicit", "sphere", "--spacing", "0.3", "-o", o(".ply"), "--coarse-tolerance", "-1"], 2, "coarse tolerance"),
+    ("particles", "--coarse-population-tolerance -1",
+     ["--implicit", "sphere", "--spacing", "0.3", "-o", o(".ply"), "--coarse-population-tolerance", "-1"], 2,
+     "coarse population tolerance"),
+    ("particles", "--step-factor 1",
+     ["--implicit", "sphere", "--spacing", "0.3", "-o", o(".ply"), "--step-factor", "1"], 2, "step factor"),
+    ("multiparticles", "--step-factor 0.5",
+     ["--materials", MASK, "--spacing", "1", "-o", o(".ply"), "--step-factor", "0.5"], 2, "step factor"),
     # unsupported extensions of the other outputs and an unknown --frame (issue 21), inputs missing
     ("tetlabel", "--tets .obj", [MISSING_M, "--implicit", "sphere", "-o", o(".ply"), "--tets", o(".obj")], 2, o(".obj")),
     ("tetlabel", "--frame xyz", [MISSING_M, "--implicit", "sphere", "-o", o(".ply"), "--frame", "xyz"], 2, "--frame"),

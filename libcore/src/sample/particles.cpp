@@ -21,9 +21,7 @@ namespace {
 
 using Engine = ParticleEngine<SurfaceConstraint>;
 using Point = SurfaceConstraint::Point;
-using engine_constants::kLambdaFactor;
 using engine_constants::kPi;
-using engine_constants::kSurfaceStepFactor;
 using engine_constants::kPlaceSteps;
 
 constexpr int kMaxLevels = 8;              // coarse-to-fine levels at most
@@ -94,7 +92,6 @@ class SurfaceRun {
     e.density = p.density;
     e.alpha_cap = p.alpha_cap;
     if (p.quads) set_quad_types(e);
-    if (!(p.step_factor > 0)) e.step_factor = p.quads ? kLambdaFactor : kSurfaceStepFactor;
     if (!p.quads) e.first_population_interval = engine_constants::kFirstPopulationInterval;
     return e;
   }
@@ -236,6 +233,7 @@ ParticleResult SurfaceRun::run(const std::vector<Vec3>& seeds) {
     const std::string label =
         levels > 0 ? "level " + std::to_string(levels - level + 1) + "/" + std::to_string(levels + 1) : "relax";
     e_.set_tolerance(level > 0 ? std::max(p_.tolerance, p_.coarse_tolerance) : p_.tolerance);
+    e_.set_population_tolerance(level > 0 ? std::max(p_.population_tolerance, p_.coarse_population_tolerance) : p_.population_tolerance);
     const Engine::LevelResult lr = e_.relax(label, p_.count != 0);
     conv = lr.converged;
     res.iterations += lr.iterations;
@@ -310,6 +308,9 @@ ParticleResult distribute_particles(const ScalarField& field, const std::vector<
   if (!(params.tolerance > 0)) throw UsageError("tolerance must be > 0, got " + engine_fmt(params.tolerance));
   if (!(params.coarse_tolerance >= 0))
     throw UsageError("coarse tolerance must be >= 0, got " + engine_fmt(params.coarse_tolerance));
+  if (!(params.coarse_population_tolerance >= 0))
+    throw UsageError("coarse population tolerance must be >= 0, got " +
+                     engine_fmt(params.coarse_population_tolerance));
   if (!(params.population_tolerance >= 0))
     throw UsageError("population tolerance must be >= 0, got " + engine_fmt(params.population_tolerance));
   if (params.max_iters < 1) throw UsageError("max iterations must be >= 1, got " + std::to_string(params.max_iters));
@@ -322,8 +323,8 @@ ParticleResult distribute_particles(const ScalarField& field, const std::vector<
     throw UsageError("seed thinning must be in [0, 2) spacings, got " + engine_fmt(params.seed_thinning));
   if (!(params.settled_move >= 0 && params.settled_move < 1))
     throw UsageError("settled move must be in [0, 1) spacings, got " + engine_fmt(params.settled_move));
-  if (!(params.step_factor == 0 || params.step_factor > 1))
-    throw UsageError("step factor must be > 1 (or 0 = default), got " + engine_fmt(params.step_factor));
+  if (!(params.step_factor > 1))
+    throw UsageError("step factor must be > 1, got " + engine_fmt(params.step_factor));
   SurfaceRun run(field, sizing, params);
   return run.run(seeds);
 }

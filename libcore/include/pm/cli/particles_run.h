@@ -36,6 +36,7 @@ struct ParticlesRun {
   CLI::Option* lattice = nullptr;
   CLI::Option* tol_opt = nullptr;
   CLI::Option* coarse_tol_opt = nullptr;
+  CLI::Option* coarse_pop_opt = nullptr;
   CLI::Option* iters_opt = nullptr;
   CLI::Option* ctf = nullptr;
   bool volume = false;

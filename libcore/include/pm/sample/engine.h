@@ -112,14 +112,6 @@ constexpr double kGamma = 0.156;             ///< normal weighting threshold
 constexpr double kLambda0 = 1.0;             ///< initial step factor
 constexpr double kLambdaMin = 1e-14;         ///< below this a particle stays put
 constexpr double kLambdaFactor = 10.0;       ///< SPEC's step factor change after a rejected / first-try accepted move
-/// The step factor of `particles` on a surface. With SPEC's 10 a particle
-/// alternates between a step 10x too long (rejected) and one that fits; 3
-/// follows the step that fits: on the 259k-particle brain mask 53 -> 30
-/// updates per particle, relax 16.7 -> 9.6 s, rr mean the same (0.9739).
-/// The others keep SPEC's 10, measured worse with 3: multiparticles on frog5
-/// (2.9 -> 4.6 M updates, interface rr mean 0.9634 -> 0.9612), volume
-/// packing (a crowded ball interior), high-order fields (an uneven channel).
-constexpr double kSurfaceStepFactor = 3.0;
 /// λ_i <= 100 s_i² (world units² per energy unit): one name for what the two
 /// old engines called kLambdaMaxPerS2 and kLambdaMaxPerH2 (both 100).
 constexpr double kLambdaMaxPerSpacing2 = 100.0;
@@ -307,7 +299,11 @@ struct EngineParams {
   int settled_recheck = 8;
   int reproject_steps = engine_constants::kReprojectSteps;  ///< constraint steps after a tangent move
   /// λ_i is multiplied by this after a first-try acceptance and divided by
-  /// it after a rejection (> 1).
+  /// it after a rejection (> 1; SPEC: 10). Smaller factors follow the step
+  /// that fits more closely but freeze more packing defects: 3 took the
+  /// 259k-particle brain mask from 53 to 30 updates per particle (rr mean
+  /// 0.9739 both), but the bunny's and the knot's distance fields from 140
+  /// to 153 and 84 to 96, their rr means down by 0.003-0.004.
   double step_factor = engine_constants::kLambdaFactor;
   /// Strongly graded spacings (volume packing): besides the bins, which are
   /// as wide as the largest interaction radius, keep a finer grid from
@@ -502,6 +498,7 @@ class ParticleEngine {
   void set_scale(double k);
   /// The convergence tolerance of the next relax() calls.
   void set_tolerance(double t) { p_.tolerance = t; }
+  void set_population_tolerance(double t) { p_.population_tolerance = t; }
   double scale() const { return scale_; }
   double planar_spacing() const { return s_; }
   void refresh_spacings() {
