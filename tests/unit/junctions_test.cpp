@@ -8,6 +8,7 @@
 #include <random>
 
 #include "pm/base/error.h"
+#include "pm/base/volume.h"
 #include "analytic_materials.h"
 
 namespace pm {
@@ -245,6 +246,46 @@ TEST(ProjectToCell, TripleLineOfCurvedWedges) {
     worst = std::max(worst, r.steps);
   }
   EXPECT_LE(worst, 8);  // quadratic convergence from 0.3 away
+}
+
+TEST(ProjectToCell, ValueBoundsSkipFarMaterialsWithTheSameResult) {
+  // A label map: background 0, a slab 1 (x < 10) and a cube 2 far from the
+  // slab's face; projections onto the 0-1 interface must give the same
+  // result with the bounds, most of them without evaluating material 2.
+  Volume lab(VoxelType::u8, Dims{32, 28, 30}, Geometry::with_spacing(0.5, 0.6, 0.55, Vec3(-3, 1, 2)));
+  for (std::size_t k = 0; k < 30; ++k)
+    for (std::size_t j = 0; j < 28; ++j)
+      for (std::size_t i = 0; i < 32; ++i) {
+        int l = i < 10 && j > 2 && j < 25 && k > 2 && k < 27 ? 1 : 0;
+        if (i >= 22 && i <= 27 && j >= 10 && j <= 16 && k >= 12 && k <= 18) l = 2;
+        lab.set(i, j, k, l);
+      }
+  const MaterialSet m = materials_from_labels(lab);
+  ASSERT_EQ(m.size(), 3u);
+  const auto bounds = dominance_bounds(m);
+  ASSERT_EQ(bounds.size(), 3u);
+  const Geometry& g = lab.geometry();
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::size_t bounded = 0, evals_with = 0, evals_without = 0, dominant = 0;
+  for (int t = 0; t < 400; ++t) {
+    const Vec3 p = g.index_to_world(Vec3(7 + 5 * u(rng), 4 + 19 * u(rng), 4 + 21 * u(rng)));
+    CellProjectParams with;
+    with.bounds = &bounds;
+    const CellProjection a = project_to_cell(m, make_cell({0, 1}), p);
+    const CellProjection b = project_to_cell(m, make_cell({0, 1}), p, with);
+    ASSERT_EQ(a.converged, b.converged);
+    ASSERT_EQ(a.dominant, b.dominant);
+    ASSERT_EQ(a.x, b.x);
+    ASSERT_EQ(a.steps, b.steps);
+    bounded += b.bounded;
+    evals_with += b.evaluations;
+    evals_without += a.evaluations;
+    dominant += a.dominant;
+  }
+  EXPECT_GT(dominant, 300u);
+  EXPECT_GT(bounded, 300u);  // the cube lies 6 mm from the slab's face
+  EXPECT_EQ(evals_without - evals_with, bounded);
 }
 
 TEST(ProjectToCell, QuadruplePointAndSurfaces) {

@@ -675,5 +675,87 @@ TEST(ScalarField, DefaultBatchLoopsOverSinglePointCalls) {
   expect_batch_matches_single(*torus, pts, torus->describe());
 }
 
+
+// --- value bounds (ValueBounds) ---------------------------------------------------
+
+// Points spread over the whole grid, block edges and the grid's last cell included.
+std::vector<Vec3> bound_probe_points(const Volume& v, int block, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::vector<Vec3> pts;
+  const Dims& d = v.dims();
+  for (int n = 0; n < 6000; ++n) {
+    Vec3 t;
+    // (the grid's border itself may round to just outside it: at() says false there)
+    for (int a = 0; a < 3; ++a) t[a] = std::uniform_real_distribution<double>(1e-9, double(d[a] - 1) - 1e-9)(rng);
+    if (n % 5 == 0)  // on a block edge along one axis
+      t[n % 3] = block * std::uniform_int_distribution<int>(1, int(d[n % 3] - 2) / block)(rng);
+    pts.push_back(v.geometry().index_to_world(t));
+  }
+  pts.push_back(v.geometry().index_to_world(Vec3(d[0] - 1.000001, d[1] - 1.000001, d[2] - 1.000001)));
+  return pts;
+}
+
+TEST(VolumeField, ValueBoundsHoldAtEveryPoint) {
+  // Random voxels make the worst case for the overshoot of Catmull-Rom's
+  // negative lobes; the bounds must hold for both kernels and every block.
+  const Volume v = random_volume(Dims{23, 17, 19}, oblique_geometry(), 5);
+  for (const VolumeFieldParams& p : {kBspline, kCatmullRom}) {
+    const VolumeField f(v, p);
+    const NegatedField neg(f);
+    for (int block : {1, 3, 4}) {
+      const auto b = f.value_bounds(block);
+      const auto nb = neg.value_bounds(block);
+      ASSERT_TRUE(b && nb);
+      double worst_slack = 1e300;
+      for (const Vec3& x : bound_probe_points(v, block, 9)) {
+        double lo, hi, nlo, nhi;
+        ASSERT_TRUE(b->at(x, lo, hi));
+        ASSERT_TRUE(nb->at(x, nlo, nhi));
+        const double fx = f.value(x);
+        EXPECT_LE(lo, fx);
+        EXPECT_GE(hi, fx);
+        EXPECT_EQ(nlo, -hi);
+        EXPECT_EQ(nhi, -lo);
+        worst_slack = std::min(worst_slack, std::min(fx - lo, hi - fx));
+      }
+      // Not vacuous: the bounds come within a voxel value range (2) of the field.
+      EXPECT_LT(worst_slack, 2.0) << block;
+    }
+    double lo, hi;
+    EXPECT_FALSE(f.value_bounds(4)->at(oblique_geometry().index_to_world(Vec3(-0.5, 3, 3)), lo, hi));
+    EXPECT_FALSE(f.value_bounds(4)->at(Vec3(std::nan(""), 0, 0), lo, hi));
+  }
+  EXPECT_THROW(VolumeField(v, kBspline).value_bounds(0), UsageError);
+}
+
+TEST(VolumeField, ValueBoundsOfALinearFieldAreTheFitAlone) {
+  // Both kernels reproduce linear functions: the residual is 0, so a
+  // block's bounds are its linear extent, block × Σ|slope in index units|.
+  const Geometry g = oblique_geometry();
+  const Vec3 grad(0.3, -0.2, 0.5);
+  const Volume v = sample(Dims{20, 18, 21}, g, [&](const Vec3& x) { return 1.0 + dot(grad, x); });
+  const Vec3 gi = transpose(g.directions) * grad;  // d/dt of F(origin + D t)
+  const double extent = std::fabs(gi.x) + std::fabs(gi.y) + std::fabs(gi.z);
+  for (const VolumeFieldParams& p : {kBspline, kCatmullRom}) {
+    const VolumeField f(v, p);
+    const auto b = f.value_bounds(4);
+    for (const Vec3& x : bound_probe_points(v, 4, 3)) {
+      double lo, hi;
+      ASSERT_TRUE(b->at(x, lo, hi));
+      EXPECT_LE(lo, f.value(x));
+      EXPECT_GE(hi, f.value(x));
+      // Where the block's samples are all inside the grid (the border
+      // replicates, which is not linear): float voxels leave residuals ~1e-6.
+      const Vec3 t = inverse(g.directions) * (x - g.origin);
+      bool inside = true;
+      for (int a = 0; a < 3; ++a) {
+        const int bk = int(t[a]) / 4;
+        inside = inside && bk >= 1 && bk * 4 + 5 <= int(v.dims()[a]) - 1;
+      }
+      if (inside) EXPECT_LE(hi - lo, 4 * extent + 1e-4);
+    }
+  }
+}
+
 }  // namespace
 }  // namespace pm

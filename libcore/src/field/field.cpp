@@ -1,6 +1,42 @@
 #include "pm/field/field.h"
 
+#include <cmath>
+
 namespace pm {
+
+bool ValueBounds::at(const Vec3& x, double& l, double& h) const {
+  // The same arithmetic as VolumeField's own index mapping, so a point on a
+  // block's edge falls in the block whose samples the field reads.
+  const Vec3 t = to_index * (x - origin);
+  const double ta[3] = {t.x, t.y, t.z};
+  std::size_t b = 0, stride = 1;
+  for (int a = 0; a < 3; ++a) {
+    if (!(ta[a] >= 0.0 && ta[a] <= double(n[a] - 1))) return false;
+    int i = static_cast<int>(ta[a]);  // t >= 0: truncation is floor
+    b += std::size_t(i / block) * stride;
+    stride *= std::size_t(nb[a]);
+  }
+  l = lo[b];
+  h = hi[b];
+  return true;
+}
+
+ValueBounds ValueBounds::negated() const {
+  ValueBounds r = *this;
+  for (std::size_t k = 0; k < lo.size(); ++k) {
+    r.lo[k] = -hi[k];
+    r.hi[k] = -lo[k];
+  }
+  return r;
+}
+
+std::shared_ptr<const ValueBounds> ScalarField::value_bounds(int) const { return nullptr; }
+
+std::shared_ptr<const ValueBounds> NegatedField::value_bounds(int block) const {
+  auto b = f_.value_bounds(block);
+  if (!b) return nullptr;
+  return std::make_shared<const ValueBounds>(b->negated());
+}
 
 void ScalarField::value_batch(const Vec3* x, std::size_t n, double* f) const {
   for (std::size_t k = 0; k < n; ++k) f[k] = value(x[k]);

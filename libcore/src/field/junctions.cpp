@@ -211,6 +211,13 @@ bool solve_spd(int k, double g[3][3], const double r[3], double y[3]) {
 
 }  // namespace
 
+std::vector<std::shared_ptr<const ValueBounds>> dominance_bounds(const MaterialSet& m, int block) {
+  std::vector<std::shared_ptr<const ValueBounds>> r;
+  r.reserve(m.fields.size());
+  for (const auto& f : m.fields) r.push_back(f ? f->value_bounds(block) : nullptr);
+  return r;
+}
+
 CellProjection project_to_cell(const MaterialSet& m, const JunctionCell& c, const Vec3& x0,
                                const CellProjectParams& p) {
   CellProjection res;
@@ -270,6 +277,14 @@ CellProjection project_to_cell(const MaterialSet& m, const JunctionCell& c, cons
     const double top = f[0] + p.tolerance;  // f[0..count) agree within tolerance
     for (std::size_t o = 0; o < m.fields.size(); ++o) {
       if (c.contains(int(o))) continue;
+      if (p.bounds && (*p.bounds)[o]) {
+        // f_o = -d_o <= -lo(d_o): decided without evaluating when that is <= top.
+        double lo, hi;
+        if ((*p.bounds)[o]->at(res.x, lo, hi) && -lo <= top) {
+          ++res.bounded;
+          continue;
+        }
+      }
       const double fo = -m.fields[o]->value(res.x);
       ++res.evaluations;
       if (!(fo <= top)) {

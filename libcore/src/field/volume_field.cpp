@@ -11,7 +11,10 @@
 #include <sstream>
 #include <utility>
 
+#include <tbb/blocked_range.h>
+
 #include "pm/base/error.h"
+#include "pm/base/parallel.h"
 
 #ifdef __linux__
 #include <sys/mman.h>
@@ -1198,6 +1201,79 @@ void VolumeField::evaluate_batch(const Vec3* x, std::size_t n, double* f, Vec3* 
       make_frame(data_.data() + base_, offset_, dims_, inv_dirs_, geom_.origin, sort_min_,
                  params_.sort_min_batch == 0, key_bits_, bricks_, avx2_);
   dispatch<2>(params_, avx2_, fr, x, n, f, grad, hess);
+}
+
+std::shared_ptr<const ValueBounds> VolumeField::value_bounds(int block) const {
+  if (block < 1) throw UsageError("VolumeField::value_bounds: block must be >= 1, got " + std::to_string(block));
+  auto r = std::make_shared<ValueBounds>();
+  r->to_index = inv_dirs_;
+  r->origin = geom_.origin;
+  r->block = block;
+  for (int a = 0; a < 3; ++a) {
+    r->n[a] = int(dims_[a]);
+    r->nb[a] = (r->n[a] + block - 1) / block;
+  }
+  const std::size_t nblocks = std::size_t(r->nb[0]) * std::size_t(r->nb[1]) * std::size_t(r->nb[2]);
+  r->lo.assign(nblocks, 0.f);
+  r->hi.assign(nblocks, 0.f);
+  // Σ|w| of the value kernel over the 4³ taps (see the header).
+  const double wsum = params_.value_kernel == KernelType::catmull_rom ? 1.25 * 1.25 * 1.25 : 1.0;
+  const float* data = data_.data() + base_;
+  const int m = block + 3;  // samples per axis: the cells' taps reach i-1 .. i+2
+  // Centred sample positions -c .. c and Σ p² of one axis (the design is a
+  // full grid, so the least-squares slopes separate by axis).
+  const double c = 0.5 * (m - 1);
+  double spp = 0;
+  for (int q = 0; q < m; ++q) spp += (q - c) * (q - c);
+  const double count = double(m) * m * m;
+  pm::parallel_for(tbb::blocked_range<int>(0, r->nb[2]), [&](const tbb::blocked_range<int>& zr) {
+    std::vector<double> y(std::size_t(m) * m * m);
+    for (int bz = zr.begin(); bz < zr.end(); ++bz)
+      for (int by = 0; by < r->nb[1]; ++by)
+        for (int bx = 0; bx < r->nb[0]; ++bx) {
+          const int b0[3] = {bx * block - 1, by * block - 1, bz * block - 1};
+          double sum = 0, sx = 0, sy = 0, sz = 0, ymax = 0;
+          std::size_t k = 0;
+          for (int qz = 0; qz < m; ++qz)
+            for (int qy = 0; qy < m; ++qy)
+              for (int qx = 0; qx < m; ++qx, ++k) {
+                // Clamped like the field's offset tables (which replicate the border).
+                const Index ix = std::min<Index>(std::max<Index>(b0[0] + qx, 0), Index(dims_[0]) - 1);
+                const Index iy = std::min<Index>(std::max<Index>(b0[1] + qy, 0), Index(dims_[1]) - 1);
+                const Index iz = std::min<Index>(std::max<Index>(b0[2] + qz, 0), Index(dims_[2]) - 1);
+                const double v = data[offset_[0][std::size_t(ix + kPad)] + offset_[1][std::size_t(iy + kPad)] +
+                                      offset_[2][std::size_t(iz + kPad)]];
+                y[k] = v;
+                sum += v;
+                sx += (qx - c) * v;
+                sy += (qy - c) * v;
+                sz += (qz - c) * v;
+                ymax = std::max(ymax, std::fabs(v));
+              }
+          const double mean = sum / count, gx = sx / (spp * m * m), gy = sy / (spp * m * m), gz = sz / (spp * m * m);
+          double e = 0;
+          k = 0;
+          for (int qz = 0; qz < m; ++qz)
+            for (int qy = 0; qy < m; ++qy)
+              for (int qx = 0; qx < m; ++qx, ++k)
+                e = std::max(e, std::fabs(y[k] - (mean + gx * (qx - c) + gy * (qy - c) + gz * (qz - c))));
+          // L over the block's cells (index offsets 1 .. block+1 from b0,
+          // i.e. -block/2 .. block/2 around the centre), plus the residual
+          // carried by the weights, plus a margin for the rounding of both
+          // the evaluation and these sums.
+          const double reach = 0.5 * block * (std::fabs(gx) + std::fabs(gy) + std::fabs(gz));
+          const double margin = 1e-9 * (ymax + 1.0);
+          const double lo = mean - reach - wsum * e - margin, hi = mean + reach + wsum * e + margin;
+          const std::size_t b = (std::size_t(bz) * std::size_t(r->nb[1]) + std::size_t(by)) * std::size_t(r->nb[0]) +
+                                std::size_t(bx);
+          float fl = float(lo), fh = float(hi);
+          if (double(fl) > lo) fl = std::nextafter(fl, -std::numeric_limits<float>::infinity());
+          if (double(fh) < hi) fh = std::nextafter(fh, std::numeric_limits<float>::infinity());
+          r->lo[b] = fl;
+          r->hi[b] = fh;
+        }
+  });
+  return r;
 }
 
 Box VolumeField::domain() const {

@@ -5,10 +5,32 @@
 #include <cstddef>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "pm/base/vec.h"
 
 namespace pm {
+
+/// Bounds of a field's value() over blocks of its voxel grid: for every x
+/// whose voxel cell lies in a block, lo <= value(x) <= hi, guaranteed (not
+/// estimated), so a caller can skip an evaluation whose outcome the bounds
+/// already decide (e.g. the dominance check of a junction projection).
+/// Made by ScalarField::value_bounds; immutable, thread-safe.
+class ValueBounds {
+ public:
+  /// The bounds of the block holding x; false (lo, hi untouched) outside
+  /// the grid's nodes or for a non-finite x.
+  bool at(const Vec3& x, double& lo, double& hi) const;
+  /// The same bounds negated (for -F).
+  ValueBounds negated() const;
+
+  Mat3 to_index;       ///< world -> index: t = to_index (x - origin)
+  Vec3 origin;
+  int block = 4;       ///< voxel cells per block edge
+  int n[3] = {0, 0, 0};   ///< grid nodes per axis
+  int nb[3] = {0, 0, 0};  ///< blocks per axis
+  std::vector<float> lo, hi;  ///< per block, x fastest
+};
 
 class ScalarField {
  public:
@@ -35,6 +57,10 @@ class ScalarField {
   virtual double resolution() const = 0;
   /// Short description for stats ("sphere r=1", "volume head.nrrd bspline").
   virtual std::string describe() const = 0;
+  /// Guaranteed value bounds over blocks of `block` voxel cells, or null when
+  /// the field cannot give them (analytic implicits). VolumeField computes
+  /// them in one pass over its voxels.
+  virtual std::shared_ptr<const ValueBounds> value_bounds(int block) const;
 };
 
 /// Which side of F = iso is the material: true when it is F < iso (distance
@@ -59,6 +85,7 @@ class NegatedField final : public ScalarField {
   Box domain() const override { return f_.domain(); }
   double resolution() const override { return f_.resolution(); }
   std::string describe() const override { return "-(" + f_.describe() + ")"; }
+  std::shared_ptr<const ValueBounds> value_bounds(int block) const override;
 
  private:
   std::shared_ptr<const ScalarField> owned_;

@@ -29,6 +29,7 @@
 // Everything is in world units (f is a signed distance: positive inside).
 #include <array>
 #include <cstddef>
+#include <memory>
 #include <vector>
 
 #include "pm/base/vec.h"
@@ -104,7 +105,15 @@ struct CellProjectParams {
   double tolerance = 1e-6;   ///< converged when every |f_a - f_b| of the cell is <= this (world units)
   double max_step = 0;       ///< longest single step, world units (0 = unlimited)
   bool check_dominance = true;  ///< also require f_o <= f_cell + tolerance for every other material o
+  /// Optional value bounds of m.fields[o] (null entries allowed; see
+  /// dominance_bounds): a material whose bound already decides the
+  /// dominance check is not evaluated. The result is the same either way.
+  const std::vector<std::shared_ptr<const ValueBounds>>* bounds = nullptr;
 };
+
+/// Value bounds of every field of the set over blocks of `block` voxels
+/// (null where a field has none), for CellProjectParams::bounds.
+std::vector<std::shared_ptr<const ValueBounds>> dominance_bounds(const MaterialSet& m, int block = 4);
 
 struct CellProjection {
   Vec3 x;                  ///< final point
@@ -118,6 +127,7 @@ struct CellProjection {
   Vec3 frame;
   double value = 0;        ///< f of the cell's first material at x
   std::size_t evaluations = 0;  ///< field evaluations used
+  std::size_t bounded = 0;      ///< dominance checks decided by the bounds, without an evaluation
 };
 
 /// Re-project x onto the junction of cell c by Gauss-Newton on the system

@@ -66,6 +66,13 @@ class VolumeField : public ScalarField {
   /// Smallest voxel spacing (world units).
   double resolution() const override;
   std::string describe() const override;
+  /// Per block: the least-squares linear fit L of the block's samples (the
+  /// (block+3)³ nodes its cells' kernels read) and the largest residual e;
+  /// both kernels reproduce linear functions, so |F - L| <= Σ|w| e, with
+  /// Σ|w| <= 1 (B-spline) or 1.25³ (Catmull-Rom, whose negative weights
+  /// sum to u(1-u)/2 <= 1/8 per axis). TBB over slabs of blocks.
+  /// \pre block >= 1.
+  std::shared_ptr<const ValueBounds> value_bounds(int block) const override;
   const Dims& dims() const { return dims_; }
   const Geometry& geometry() const { return geom_; }
   /// True when evaluation runs the AVX2 code path.

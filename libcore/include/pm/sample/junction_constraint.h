@@ -12,6 +12,7 @@
 // sampled first, fixed, and repel the higher ones.
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <vector>
 
 #include "pm/field/junctions.h"
@@ -72,6 +73,9 @@ class JunctionConstraint {
   const MaterialSet& m_;
   Box domain_;
   double tol_;
+  // Value bounds of the material fields: most dominance checks are decided
+  // without evaluating the materials far from the cell (same result).
+  std::vector<std::shared_ptr<const ValueBounds>> bounds_;
   std::vector<JunctionCell> cells_;
   std::map<JunctionCell, std::int32_t> ids_;
   std::vector<char> vis_;  // vis_[a * nc + b]: cell b bounds cell a (b ⊇ a, b != a)
