@@ -161,39 +161,74 @@ def stage_rows(case, out, stages, digits):
     return total
 
 
+def side_by_side(case, name, target, inp, make_vars, stages, peer, vertex_target=None):
+    """Issue #17: one pipeline under `make -j2` (THREADS=2) and CGAL on the same input at our vertex count, in
+    the same run. Rows: each stage's seconds (its --stats total) and share of the stages, the make wall time and
+    peak resident memory (the largest process), CGAL's final run at the matched vertex count (+-10%) and the
+    ratio of the two wall times (target <= 2). `peer(out, n)` gives baseline's arguments. Returns the quality."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = os.path.join(tmp, "".join(ch if ch.isalnum() else "_" for ch in name))
+        os.makedirs(out)
+        inp = inp(out) if callable(inp) else inp
+        wall, peak = timed_tool(["make", "-s", "-j2", "-f", os.path.join(ROOT, "Makefile.pipeline"), target,
+                                 f"INPUT={inp}", f"OUT={out}", f"BIN={BIN}", "THREADS=2", "QUIET=1"] +
+                                [f"{k}={v}" for k, v in make_vars.items()])
+        secs = {}
+        for stage in stages:  # medialaxis runs once per material in `materials`: medialaxis_0.json, ...
+            files = sorted(f for f in os.listdir(os.path.join(out, "work"))
+                           if f == f"{stage}.json" or (f.startswith(stage + "_") and f.endswith(".json")))
+            t = sum(json.load(open(os.path.join(out, "work", f)))["seconds"]["total"] for f in files)
+            if files:
+                secs[stage] = t
+        total = sum(secs.values())
+        for stage, t in sorted(secs.items(), key=lambda kv: -kv[1]):
+            row(case, f"{name}: stage {stage}", round(t, 2), "s", note=f"{100 * t / max(total, 1e-9):.0f}% of the stages")
+        q = json.load(open(os.path.join(out, "quality.json")))
+        n = q["overall"]["vertices"] if "overall" in q else q["vertices"]
+        ok_n = vertex_target is None or (0.9 * vertex_target <= n <= 1.1 * vertex_target)
+        row(case, f"{name}: make -j2 wall, input to meshes", round(wall, 1), "s",
+            f"~{vertex_target} vertices" if vertex_target else None, ok_n if vertex_target else None,
+            f"{n} vertices; stages sum to {total:.1f} s (the rest: quality report, renders); peak memory "
+            f"{peak:.0f} MB")
+        cg = os.path.join(out, "cgal.json")
+        cwall, cpeak = timed_tool([os.path.join(BIN, "baseline")] + peer(out, n) +
+                              ["--vertices", str(n), "-o", os.path.join(out, "cgal.ply"), "--stats", cg, "-q",
+                               "--threads", "2"])
+        c = json.load(open(cg))
+        cn, cfinal = c["counts"]["vertices"], c["seconds_final_run"]
+        matched = abs(cn - n) <= 0.1 * n
+        row(case, f"{name}: CGAL Mesh_3, same input, matched vertex count", round(cfinal, 1), "s", "+-10% vertices",
+            matched, f"{cn} vertices; {len(c.get('size_search', []))} runs in the size search, {cwall:.1f} s in all; peak "
+            f"memory {cpeak:.0f} MB")
+        row(case, f"{name}: ratio ours / CGAL (make wall / CGAL's final run)", round(wall / max(cfinal, 1e-9), 1), "x",
+            "<= 2", wall <= 2 * cfinal and matched, f"stages alone {total / max(cfinal, 1e-9):.1f}x")
+        return q
+
+
+SURFACE_STAGES = ("morph", "tighten", "medialaxis", "sizingfield", "gradlimit", "mcinit", "particles", "tetlabel")
+MATERIAL_STAGES = ("volconv", "morph", "tighten", "medialaxis", "sizingfield", "gradlimit", "mcinit",
+                   "multiparticles", "tetlabel")
+
+
 def case_ch5():
-    """Whole Chapter 5 pipeline on the 256^3 brain mask (Makefile.pipeline surface, 2 threads), per-stage
-    times from the stages' --stats JSON, and CGAL Mesh_3 (baseline cgal) on the same field at the same
-    vertex count."""
+    """Whole Chapter 5 pipeline on the 256^3 brain mask (Makefile.pipeline surface) at about 500k vertices
+    (issues #16, #17), side by side with CGAL Mesh_3 (baseline cgal) on the same signed distance at the same
+    vertex count. PM_BENCH_CH5_EPS and PM_BENCH_CH5_HMIN set EPS and HMIN (default 0.05 and 0.42 mm: about
+    500k vertices; the sizing reaches HMIN on most of the cortex, so EPS alone saturates near 420k; EPS 0.27
+    with the default HMIN: about 100k)."""
     brain = os.path.join(SHARED, "iso2mesh-head", "derived", "brain.nrrd")
     if not os.path.exists(brain):
         row("ch5", "brain mask pipeline", None, "", note="../shared/data absent: skipped")
         return
-    # EPS 0.27 gives about 100k vertices on this mask (0.5: 36k, 0.3: 80k).
-    eps = os.environ.get("PM_BENCH_CH5_EPS", "0.27")
-    with tempfile.TemporaryDirectory() as tmp:
-        out = os.path.join(tmp, "brain")
-        _, wall = run(["make", "-s", "-f", os.path.join(ROOT, "Makefile.pipeline"), "surface", f"INPUT={brain}",
-                       f"OUT={out}", f"BIN={BIN}", "THREADS=2", "QUIET=1", f"EPS={eps}"])
-        q = json.load(open(os.path.join(out, "quality.json")))
-        n = q["vertices"]
-        total = stage_rows("ch5", out, ("morph", "tighten", "medialaxis", "sizingfield", "gradlimit", "mcinit",
-                                        "particles", "tetlabel"), 2)
-        row("ch5", "brain mask to mesh (stages, 2 threads)", round(total, 1), "s", "~100k vertices < 120 s",
-            total < 120 and 80000 <= n <= 120000, f"{n} vertices (EPS={eps}); make wall {wall:.1f} s incl. "
-            f"meshstats + renders")
-        row("ch5", "our mesh radius ratio min / mean", f"{q['radius_ratio']['min']:.3f} / "
-            f"{q['radius_ratio']['mean']:.3f}", "", ">= 0.30 / >= 0.94",
-            q["radius_ratio"]["min"] >= 0.3 and q["radius_ratio"]["mean"] >= 0.94)
-        row("ch5", "our mesh valence 6", round(100 * q["valence"]["share_6"], 1), "%", ">= 65",
-            q["valence"]["share_6"] >= 0.65)
-        cg = os.path.join(out, "cgal.json")
-        run([os.path.join(BIN, "baseline"), "cgal", "-i", os.path.join(out, "work", "sdf.nrrd"), "--iso", "0",
-             "--vertices", str(n), "-o", os.path.join(out, "cgal.ply"), "--stats", cg, "-q", "--threads", "2"])
-        c = json.load(open(cg))
-        row("ch5", "CGAL Mesh_3, same field and vertex count (2 threads)", round(c["seconds_final_run"], 1), "s",
-            note=f"{c['counts']['vertices']} vertices, facet size {c['parameters']['facet_size']:.3g}; "
-                 f"{len(c.get('size_search', []))} runs in the size search, {c['seconds']['total']:.1f} s in all")
+    eps = os.environ.get("PM_BENCH_CH5_EPS", "0.05")
+    hmin = os.environ.get("PM_BENCH_CH5_HMIN", "0.42")
+    mvars = {"EPS": eps, "HMIN": hmin} if hmin else {"EPS": eps}
+    q = side_by_side("ch5", f"brain EPS={eps} HMIN={hmin or 'default'}", "surface", brain, mvars, SURFACE_STAGES,
+                     lambda out, n: ["cgal", "-i", os.path.join(out, "work", "sdf.nrrd"), "--iso", "0"],
+                     500000 if (eps, hmin) == ("0.05", "0.42") else None)
+    row("ch5", "our mesh radius ratio min / mean, valence 6", f"{q['radius_ratio']['min']:.3f} / "
+        f"{q['radius_ratio']['mean']:.4f}, {100 * q['valence']['share_6']:.1f}%", "", ">= 0.30 / >= 0.94, >= 65%",
+        q["radius_ratio"]["min"] >= 0.3 and q["radius_ratio"]["mean"] >= 0.94 and q["valence"]["share_6"] >= 0.65)
 
 
 def case_multiparticles():
@@ -293,32 +328,26 @@ CASES["voltools"] = case_voltools
 
 
 def case_ch6():
-    """Issue 6: the 5-material frog end to end (Makefile.pipeline materials as scripts/results_ch6.py runs it,
-    2 threads) in < 10 minutes, with per-stage times and CGAL Mesh_3's labelled-image mesher on the same
-    cleaned label map at about the same vertex count."""
-    frog = os.path.join(SHARED, "vtk-frogtissue", "derived", "frogtissue.nrrd")
-    if not os.path.exists(frog):
-        row("ch6", "frog, 5 materials", None, "", note="../shared/data absent: skipped")
-        return
-    merge = "13:1 11:2 1,6:3 2,3,4,5,7,8,9,10,12,14,15:4"  # as results_ch6.py's FROG5
-    with tempfile.TemporaryDirectory() as tmp:
-        out = os.path.join(tmp, "frog5")
-        _, wall = run(["make", "-s", "-f", os.path.join(ROOT, "Makefile.pipeline"), "materials", f"INPUT={frog}",
-                       f"OUT={out}", f"BIN={BIN}", "THREADS=2", "QUIET=1", "R=2", "DOWNSAMPLE=2",
-                       "MIN_VOXELS=300", f"MERGE={merge}", "PAD=3", "PAD_VALUE=0",
-                       "EPS=0.5", "DELTA=0.4", "HMIN=2"])  # the 2008 sizing, as results_ch6.py's rows
-        total = stage_rows("ch6", out, ("volconv", "morph", "tighten", "sizingfield", "gradlimit", "mcinit",
-                                        "multiparticles", "tetlabel"), 1)
-        q = json.load(open(os.path.join(out, "quality.json")))
-        n = q["overall"]["vertices"]
-        row("ch6", "frog, 5 materials, label map to meshes", round(wall, 1), "s", "< 600 s", wall < 600,
-            f"make wall incl. medialaxis, meshstats, renders; stages with --stats sum to {total:.1f} s; {n} vertices")
-        cg = os.path.join(out, "cgal.json")
-        _, ct = run([os.path.join(BIN, "baseline"), "cgal-labels", "-i", os.path.join(out, "work", "morph.nrrd"),
-                     "--vertices", str(n), "-o", os.path.join(out, "cgal.ply"), "--stats", cg, "-q",
-                     "--threads", "2"])
-        row("ch6", "CGAL Mesh_3 labelled image, same label map and vertex count", round(ct, 1), "s",
-            note=f"{json.load(open(cg)).get('counts', {}).get('vertices', '?')} vertices (wall, size search included)")
+    """Issues #6 and #17: `make materials` on frog5 and the nested head (as scripts/results_ch6.py runs them,
+    the 2008 sizing) side by side with CGAL Mesh_3's labelled-image mesher on the same cleaned label map at the
+    same vertex count. PM_BENCH_CH6 picks the data sets (default frog5,head)."""
+    sys.path.insert(0, os.path.join(ROOT, "scripts"))
+    import results_ch6
+    sets = {name: (src, mvars) for name, src, mvars, _ in results_ch6.DATASETS}
+    for name in os.environ.get("PM_BENCH_CH6", "frog5,head").split(","):
+        if name not in sets:
+            sys.exit(f"bench: PM_BENCH_CH6: unknown data set {name!r}; expected some of {', '.join(sets)}")
+        src, mvars = sets[name]
+        probe = os.path.join(SHARED, {"nested": "iso2mesh-head", "spheres": "cleaver-spheres"}.get(src, src))
+        if not os.path.exists(probe):
+            row("ch6", name, None, "", note="../shared/data absent: skipped")
+            continue
+        q = side_by_side("ch6", name, "materials", lambda out, name=name, src=src: results_ch6.ch6_input(name, src, out),
+                         mvars, MATERIAL_STAGES,
+                         lambda out, n: ["cgal-labels", "-i", os.path.join(out, "work", "morph.nrrd")])
+        rr_min, mean_lo, mean_hi, closed, manifold, _ = results_ch6.material_summary(q)
+        row("ch6", f"{name}: rr min (worst material) / mean per material", f"{rr_min:.3f} / {mean_lo:.4f}-{mean_hi:.4f}",
+            "", ">= 0.30 / >= 0.93", rr_min >= 0.3 and mean_lo >= 0.93 and closed and manifold)
 
 
 CASES["ch6"] = case_ch6
