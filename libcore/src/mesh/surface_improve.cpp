@@ -132,10 +132,8 @@ class Improver {
     mean_edge_ = m_.faces.empty() ? 1.0 : edge_sum / (3.0 * double(m_.faces.size()));
     tol_ = p_.tolerance * mean_edge_;
     for (int r = 0; r < p_.rounds; ++r) {
-      for (int pass = 0; pass < 8; ++pass) {
-        if (flip_pass() == 0) break;
-        build_opposites();
-      }
+      for (int pass = 0; pass < 8; ++pass)
+        if (flip_pass() == 0) break;  // flips keep opp_, edges_ and valence_ up to date
       for (int s = 0; s < p_.smoothing_steps; ++s) smooth_step();
     }
     if (single_ && m_.has_normals()) update_normals();
@@ -241,7 +239,7 @@ class Improver {
       const int k = int(h % 3), mo = int(o % 3);
       const int a = m_.faces[f][k], b = m_.faces[f][(k + 1) % 3], c = m_.faces[f][(k + 2) % 3];
       const int d = m_.faces[g][(mo + 2) % 3];
-      if (c == d || valence_[a] <= 3 || valence_[b] <= 3 || edges_.count(undirected(c, d))) continue;
+      if (c == d || valence_[a] <= 3 || valence_[b] <= 3) continue;
       if (frozen_[a] || frozen_[b] || frozen_[c] || frozen_[d]) continue;
       const Vec3 &A = V[a], &B = V[b], &C = V[c], &D = V[d];
       const double rr_old = std::min(triangle_radius_ratio(A, B, C), triangle_radius_ratio(B, A, D));
@@ -260,6 +258,8 @@ class Improver {
       const bool valence_flip =
           dev_new < dev_old && rr_new >= std::max(p_.keep_quality * rr_old, std::min(rr_old, 0.5));
       if (!quality_flip && !valence_flip) continue;
+      // Only now the edge table (a cache miss per lookup): most edges fail the tests above.
+      if (edges_.count(undirected(c, d))) continue;
       // No fold: the new triangles face the way the old pair did and each other.
       const Vec3 n_old = normalized(normalized(face_normal(A, B, C)) + normalized(face_normal(B, A, D)));
       const Vec3 n1 = normalized(face_normal(A, D, C)), n2 = normalized(face_normal(B, C, D));
@@ -268,8 +268,23 @@ class Improver {
       const int grp = sh_.group[f];
       const double dev_cd = deviation((C + D) * 0.5, grp), dev_ab = deviation((A + B) * 0.5, grp);
       if (!(dev_cd <= std::max(1.5 * dev_ab, 0.02 * norm(C - D)))) continue;
+      // Re-link the opposites locally (what build_opposites would find: the
+      // new edge c-d is not an edge yet, so it gets exactly these two halves).
+      // Old f = (a b c) from k: a->b, b->c, c->a; old g from mo: b->a, a->d,
+      // d->b. New f = (a d c): a->d, d->c, c->a; new g = (b c d): b->c, c->d, d->b.
+      const int out_ad = opp_[3 * g + (mo + 1) % 3], out_ca = opp_[3 * f + (k + 2) % 3];
+      const int out_bc = opp_[3 * f + (k + 1) % 3], out_db = opp_[3 * g + (mo + 2) % 3];
       m_.faces[f] = {a, d, c};
       m_.faces[g] = {b, c, d};
+      const auto link = [&](std::size_t h_new, int other) {
+        opp_[h_new] = other;
+        if (other >= 0) opp_[std::size_t(other)] = int(h_new);
+      };
+      link(3 * f + 0, out_ad);
+      link(3 * f + 2, out_ca);
+      link(3 * g + 0, out_bc);
+      link(3 * g + 2, out_db);
+      link(3 * f + 1, int(3 * g + 1));
       touched[f] = touched[g] = 1;
       edges_.erase(undirected(a, b));
       edges_.insert(undirected(c, d));

@@ -1,8 +1,8 @@
 #include "pm/mesh/topology.h"
 
+#include <algorithm>
 #include <cstdint>
 #include <numeric>
-#include <unordered_map>
 #include <utility>
 
 namespace pm {
@@ -26,47 +26,64 @@ std::uint64_t edge_key(int a, int b) {
 }  // namespace
 
 MeshTopology mesh_topology(const Mesh& m) {
+  // Flat arrays only (sorted edge keys, vertex -> faces in CSR): surfaces of
+  // a million triangles are checked several times per pipeline run.
   MeshTopology t;
-  t.faces = m.faces.size();
-  std::unordered_map<std::uint64_t, int> edges;
-  edges.reserve(m.faces.size() * 2);
-  std::vector<char> used(m.vertices.size(), 0);
-  UnionFind uf(m.vertices.size());
+  const std::size_t nf = m.faces.size(), nv = m.vertices.size();
+  t.faces = nf;
+  std::vector<std::uint64_t> keys;
+  keys.reserve(3 * nf);
+  std::vector<char> used(nv, 0);
+  UnionFind uf(nv);
   for (const auto& f : m.faces)
     for (int e = 0; e < 3; ++e) {
-      ++edges[edge_key(f[e], f[(e + 1) % 3])];
+      keys.push_back(edge_key(f[e], f[(e + 1) % 3]));
       used[f[e]] = 1;
       uf.unite(f[e], f[(e + 1) % 3]);
     }
-  t.edges = edges.size();
-  for (const auto& [k, n] : edges) {
-    (void)k;
-    if (n == 1) ++t.boundary_edges;
-    if (n > 2) ++t.nonmanifold_edges;
+  std::sort(keys.begin(), keys.end());
+  for (std::size_t i = 0; i < keys.size();) {
+    std::size_t j = i + 1;
+    while (j < keys.size() && keys[j] == keys[i]) ++j;
+    ++t.edges;
+    if (j - i == 1) ++t.boundary_edges;
+    if (j - i > 2) ++t.nonmanifold_edges;
+    i = j;
   }
-  for (std::size_t v = 0; v < m.vertices.size(); ++v)
+  std::vector<std::uint64_t>().swap(keys);
+  for (std::size_t v = 0; v < nv; ++v)
     if (used[v]) {
       ++t.vertices;
       if (uf.find(int(v)) == int(v)) ++t.components;
     }
-  // Non-manifold vertices: the faces around a vertex form more than one fan.
-  std::vector<std::vector<int>> vf(m.vertices.size());
-  for (std::size_t i = 0; i < m.faces.size(); ++i)
-    for (int v : m.faces[i]) vf[v].push_back(int(i));
-  for (std::size_t v = 0; v < m.vertices.size(); ++v) {
-    const auto& fs = vf[v];
-    if (fs.size() < 2) continue;
-    UnionFind local(fs.size());
-    std::unordered_map<int, int> first;  // other vertex of an edge at v -> local face
-    for (std::size_t a = 0; a < fs.size(); ++a)
-      for (int w : m.faces[fs[a]])
-        if (w != int(v)) {
-          auto it = first.find(w);
-          if (it == first.end()) first[w] = int(a);
-          else local.unite(int(a), it->second);
-        }
+  // Non-manifold vertices: the faces around a vertex form more than one fan
+  // (faces joined by an edge at the vertex, i.e. by a shared other vertex).
+  std::vector<std::size_t> start(nv + 1, 0);
+  for (const auto& f : m.faces)
+    for (int v : f) ++start[std::size_t(v) + 1];
+  for (std::size_t v = 0; v < nv; ++v) start[v + 1] += start[v];
+  std::vector<int> list(start[nv]);
+  {
+    std::vector<std::size_t> fill(start.begin(), start.end() - 1);
+    for (std::size_t i = 0; i < nf; ++i)
+      for (int v : m.faces[i]) list[fill[std::size_t(v)]++] = int(i);
+  }
+  std::vector<std::pair<int, int>> others;  // (other vertex of an edge at v, local face)
+  UnionFind local(0);
+  for (std::size_t v = 0; v < nv; ++v) {
+    const std::size_t k = start[v + 1] - start[v];
+    if (k < 2) continue;
+    others.clear();
+    for (std::size_t a = 0; a < k; ++a)
+      for (int w : m.faces[std::size_t(list[start[v] + a])])
+        if (w != int(v)) others.push_back({w, int(a)});
+    std::sort(others.begin(), others.end());
+    local.parent.resize(k);
+    std::iota(local.parent.begin(), local.parent.end(), 0);
+    for (std::size_t q = 1; q < others.size(); ++q)
+      if (others[q].first == others[q - 1].first) local.unite(others[q].second, others[q - 1].second);
     std::size_t fans = 0;
-    for (std::size_t a = 0; a < fs.size(); ++a) fans += local.find(int(a)) == int(a);
+    for (std::size_t a = 0; a < k; ++a) fans += local.find(int(a)) == int(a);
     if (fans > 1) ++t.nonmanifold_vertices;
   }
   t.euler = long(t.vertices) - long(t.edges) + long(t.faces);
