@@ -10,6 +10,7 @@
 #include <iterator>
 
 #include "pm/mesh/meshstats.h"
+#include "pm/mesh/topology.h"
 
 namespace pm {
 
@@ -24,7 +25,9 @@ bool self_intersecting_faces(const Mesh& m, std::vector<std::pair<int, int>>& ou
   std::vector<std::array<std::size_t, 3>> polys;  // fixed-size polygons: no allocation per face
   polys.reserve(m.faces.size());
   for (const auto& f : m.faces) polys.push_back({std::size_t(f[0]), std::size_t(f[1]), std::size_t(f[2])});
-  if (!known_polygon_mesh && !PMP::is_polygon_soup_a_polygon_mesh(polys)) return false;
+  // CGAL's soup test costs more than the intersection test itself on a large
+  // mesh; a closed, consistently oriented manifold passes it by construction.
+  if (!known_polygon_mesh && !closed_oriented_manifold(m) && !PMP::is_polygon_soup_a_polygon_mesh(polys)) return false;
   SM sm;
   PMP::polygon_soup_to_polygon_mesh(pts, polys, sm);  // faces keep the soup's order
   std::vector<std::pair<SM::Face_index, SM::Face_index>> pairs;

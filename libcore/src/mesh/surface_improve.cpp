@@ -472,20 +472,6 @@ std::vector<std::pair<int, int>> crossings(const Mesh& m, const std::vector<int>
 // closer than an edge (thin parts), they can still make triangles cross.
 // Check with CGAL, switch off flips (then moves) around every new crossing
 // (and the 1-rings), and redo from the original mesh; a few rounds suffice.
-// A closed manifold (every edge in two triangles, every vertex one fan) whose
-// triangles are oriented consistently (no directed edge twice) is a polygon
-// mesh for CGAL.
-bool closed_oriented_manifold(const Mesh& m) {
-  if (!mesh_topology(m).closed_manifold()) return false;
-  std::vector<std::uint64_t> directed;
-  directed.reserve(3 * m.faces.size());
-  for (const Tri& t : m.faces)
-    for (int k = 0; k < 3; ++k)
-      directed.push_back(std::uint64_t(std::uint32_t(t[k])) | (std::uint64_t(std::uint32_t(t[(k + 1) % 3])) << 32));
-  std::sort(directed.begin(), directed.end());
-  return std::adjacent_find(directed.begin(), directed.end()) == directed.end();
-}
-
 SurfaceImproveStats improve_guarded(Mesh& mesh, const Sheets& sh, bool single, const std::vector<int>* materials,
                                     const SurfaceImproveParams& p) {
   const Mesh original = mesh;

@@ -91,4 +91,15 @@ MeshTopology mesh_topology(const Mesh& m) {
   return t;
 }
 
+bool closed_oriented_manifold(const Mesh& m) {
+  if (!mesh_topology(m).closed_manifold()) return false;
+  std::vector<std::uint64_t> directed;
+  directed.reserve(3 * m.faces.size());
+  for (const auto& t : m.faces)
+    for (int k = 0; k < 3; ++k)
+      directed.push_back(std::uint64_t(std::uint32_t(t[k])) | (std::uint64_t(std::uint32_t(t[(k + 1) % 3])) << 32));
+  std::sort(directed.begin(), directed.end());
+  return std::adjacent_find(directed.begin(), directed.end()) == directed.end();
+}
+
 }  // namespace pm

@@ -18,4 +18,9 @@ struct MeshTopology {
 };
 MeshTopology mesh_topology(const Mesh& m);
 
+/// A closed manifold (every edge in two triangles, every vertex one fan)
+/// whose triangles are oriented consistently (no directed edge twice): a
+/// polygon mesh for CGAL, without CGAL's slower polygon-soup test.
+bool closed_oriented_manifold(const Mesh& m);
+
 }  // namespace pm
