@@ -289,6 +289,7 @@ SurfaceMeshResult mesh_surface_from_particles(const Mesh& pts, const ScalarField
     ScopedStage s("improve");
     SurfaceImproveParams ip;
     ip.rounds = p.improve;
+    ip.input_embedded = true;  // faces of the Delaunay tetrahedra: none cross
     res.improve = improve_surface(surf, f, iso, ip);
   }
   return res;
@@ -337,6 +338,7 @@ MaterialStageResult mesh_materials_from_particles(Mesh pts, const MaterialSet& m
     ScopedStage s("improve");
     SurfaceImproveParams ip;
     ip.rounds = p.improve;
+    ip.input_embedded = true;  // faces of the (relabelled) Delaunay tetrahedra: none cross
     res.improve = improve_interfaces(mm.interfaces, ms, ip);
     for (auto& [l, m] : mm.surfaces) m = material_from_interfaces(mm.interfaces, l);
   }

@@ -476,7 +476,7 @@ SurfaceImproveStats improve_guarded(Mesh& mesh, const Sheets& sh, bool single, c
                                     const SurfaceImproveParams& p) {
   const Mesh original = mesh;
   const bool checked = single && closed_oriented_manifold(original);
-  const std::size_t before = crossings(original, materials, checked).size();
+  const std::size_t before = p.input_embedded ? 0 : crossings(original, materials, checked).size();
   std::vector<char> frozen(mesh.vertices.size(), 0);
   SurfaceImproveStats st;
   for (int attempt = 0;; ++attempt) {

@@ -34,6 +34,10 @@ struct SurfaceImproveParams {
   double max_fold_deg = 30;    ///< a flip or move may turn a triangle's normal by at most this much
   int newton_steps = 6;        ///< projection onto F = iso after a move
   double tolerance = 1e-6;     ///< |F - iso| accepted after projection, relative to the mean edge length
+  /// The input's triangles are known not to cross (faces of one valid
+  /// tetrahedralization, as tetlabel's): the check of the input is skipped
+  /// and self_intersections_before is 0.
+  bool input_embedded = false;
 };
 
 struct SurfaceImproveStats {
