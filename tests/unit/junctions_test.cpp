@@ -262,7 +262,7 @@ TEST(ProjectToCell, ValueBoundsSkipFarMaterialsWithTheSameResult) {
       }
   const MaterialSet m = materials_from_labels(lab);
   ASSERT_EQ(m.size(), 3u);
-  const auto bounds = dominance_bounds(m);
+  const auto bounds = material_bounds(m);
   ASSERT_EQ(bounds.size(), 3u);
   const Geometry& g = lab.geometry();
   std::mt19937_64 rng(17);

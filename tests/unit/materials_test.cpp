@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
+#include <random>
 #include <string>
 
 #include "pm/base/error.h"
@@ -67,6 +69,31 @@ TEST(Materials, FromLabelMap) {
   EXPECT_NEAR(f[1], 0.0, 0.15);
   EXPECT_EQ(ms.label_at({11.3, 6, 6}), 1);
   EXPECT_EQ(ms.label_at({11.7, 6, 6}), 2);
+}
+
+TEST(Materials, BoundedArgmaxIsTheArgmax) {
+  // The bounds may only skip materials that cannot win: the same index at
+  // random points, at the grid's nodes and outside the grid (no bounds).
+  const MaterialSet ms = materials_from_labels(three_labels());
+  const MaterialBounds b = material_bounds(ms);
+  ASSERT_EQ(b.size(), 3u);
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<double> u(-2, 25);
+  for (int t = 0; t < 20000; ++t) {
+    const Vec3 p{u(rng), u(rng), u(rng)};
+    ASSERT_EQ(argmax_bounded(ms, b, p), ms.argmax(p)) << p.x << " " << p.y << " " << p.z;
+  }
+  const Volume grid = three_labels();
+  const Volume am = argmax_labels(ms, grid);
+  std::size_t disagree_with_map = 0;
+  for (std::size_t k = 0; k < 24; ++k)
+    for (std::size_t j = 0; j < 24; ++j)
+      for (std::size_t i = 0; i < 24; ++i) {
+        const Vec3 x{double(i), double(j), double(k)};
+        ASSERT_EQ(am.data<std::int32_t>()[am.index(i, j, k)], ms.label_at(x));
+        disagree_with_map += am.data<std::int32_t>()[am.index(i, j, k)] != int(grid.get(i, j, k));
+      }
+  EXPECT_EQ(disagree_with_map, 0u);  // at the nodes the argmax of the mask distances is the label map
 }
 
 TEST(Materials, FromVolumesAndSigns) {

@@ -165,13 +165,7 @@ void run_volconv(VolConvRun& cfg, const CommonFlags& flags, const CLI::App& app)
     first.erase(0, first.find_first_not_of(" \t+"));
     first.erase(first.find_last_not_of(" \t") + 1);
     const pm::Volume g = pm::read_volume(first);
-    v = pm::Volume(pm::VoxelType::i32, g.dims(), g.geometry());
-    std::int32_t* o = v.data<std::int32_t>();
-    const pm::Dims& d = g.dims();
-    for (std::size_t k = 0; k < d.nz; ++k)
-      for (std::size_t j = 0; j < d.ny; ++j)
-        for (std::size_t i = 0; i < d.nx; ++i)
-          o[v.index(i, j, k)] = ms.label_at(g.geometry().index_to_world(pm::Vec3(double(i), double(j), double(k))));
+    v = pm::argmax_labels(ms, g);
     st["parameters"] = {{"argmax", in}};
   } else if (sdf) {
     if (!(sp.voxel > 0)) throw pm::UsageError("--sdf needs --voxel V with V > 0 (world units)");

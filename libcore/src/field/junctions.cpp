@@ -211,13 +211,6 @@ bool solve_spd(int k, double g[3][3], const double r[3], double y[3]) {
 
 }  // namespace
 
-std::vector<std::shared_ptr<const ValueBounds>> dominance_bounds(const MaterialSet& m, int block) {
-  std::vector<std::shared_ptr<const ValueBounds>> r;
-  r.reserve(m.fields.size());
-  for (const auto& f : m.fields) r.push_back(f ? f->value_bounds(block) : nullptr);
-  return r;
-}
-
 CellProjection project_to_cell(const MaterialSet& m, const JunctionCell& c, const Vec3& x0,
                                const CellProjectParams& p) {
   CellProjection res;

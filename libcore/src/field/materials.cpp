@@ -2,12 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <map>
 #include <set>
 #include <sstream>
 
 #include "pm/base/error.h"
+#include "pm/base/parallel.h"
 #include "pm/field/distance.h"
 #include "pm/field/volume_field.h"
 #include "pm/io/volume_io.h"
@@ -64,6 +66,57 @@ VolumeFieldParams kernel_params(Kernel k) { return {k, k}; }
 
 void MaterialSet::indicators(const Vec3& p, double* out) const {
   for (std::size_t i = 0; i < fields.size(); ++i) out[i] = -fields[i]->value(p);
+}
+
+MaterialBounds material_bounds(const MaterialSet& m, int block) {
+  MaterialBounds r;
+  r.reserve(m.fields.size());
+  for (const auto& f : m.fields) r.push_back(f ? f->value_bounds(block) : nullptr);
+  return r;
+}
+
+std::size_t argmax_bounded(const MaterialSet& m, const MaterialBounds& b, const Vec3& p) {
+  const std::size_t n = m.fields.size();
+  if (b.size() != n || n > kMaxMaterials) return m.argmax(p);
+  // f_i = -d_i lies in [-hi_i, -lo_i]; a material whose upper bound is below
+  // the largest lower bound is strictly below that material: never the argmax.
+  double upper[kMaxMaterials];
+  double floor = -std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < n; ++i) {
+    double lo, hi;
+    if (b[i] && b[i]->at(p, lo, hi)) {
+      upper[i] = -lo;
+      floor = std::max(floor, -hi);
+    } else {
+      upper[i] = std::numeric_limits<double>::infinity();
+    }
+  }
+  std::size_t best = 0;
+  double best_f = -std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (upper[i] < floor) continue;
+    const double f = -m.fields[i]->value(p);
+    if (f > best_f) {  // strict: ties keep the smallest index, as argmax
+      best_f = f;
+      best = i;
+    }
+  }
+  return best;
+}
+
+Volume argmax_labels(const MaterialSet& m, const Volume& grid) {
+  const MaterialBounds b = material_bounds(m);
+  Volume v(VoxelType::i32, grid.dims(), grid.geometry());
+  std::int32_t* o = v.data<std::int32_t>();
+  const Dims& d = grid.dims();
+  const Geometry& g = grid.geometry();
+  pm::parallel_for(std::size_t(0), d.nz, [&](std::size_t k) {
+    for (std::size_t j = 0; j < d.ny; ++j)
+      for (std::size_t i = 0; i < d.nx; ++i)
+        o[v.index(i, j, k)] =
+            m.labels[argmax_bounded(m, b, g.index_to_world(Vec3(double(i), double(j), double(k))))];
+  });
+  return v;
 }
 
 std::size_t MaterialSet::argmax(const Vec3& p) const {

@@ -610,14 +610,7 @@ MaterialsPipelineResult mesh_materials_pipeline(const Volume& in, const Material
   // volconv MATERIALS --argmax, then mcinit --junctions.
   std::vector<JunctionSeed> seeds;
   stages.run("mcinit", [&] {
-    const Volume& g = sdfs[0];
-    Volume am(VoxelType::i32, g.dims(), g.geometry());
-    std::int32_t* o = am.data<std::int32_t>();
-    const Dims& d = g.dims();
-    for (std::size_t k = 0; k < d.nz; ++k)
-      for (std::size_t j = 0; j < d.ny; ++j)
-        for (std::size_t i = 0; i < d.nx; ++i)
-          o[am.index(i, j, k)] = ms.label_at(g.geometry().index_to_world(Vec3(double(i), double(j), double(k))));
+    const Volume am = argmax_labels(ms, sdfs[0]);
     JunctionParams jp;
     jp.decimate = p.decimate;
     Mesh sm;

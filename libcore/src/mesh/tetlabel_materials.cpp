@@ -106,8 +106,10 @@ MaterialMeshes mesh_materials(TetMesh& tm, const MaterialSet& ms, const Material
   MaterialMeshes out;
   const Box dom = ms.domain();
   const int outside = p.outside_label;
+  const MaterialBounds bounds = material_bounds(ms);
   out.label_stats = label_tets(
-      tm, [&](const Vec3& x) { return dom.contains(x) ? ms.label_at(x) : outside; }, p.label);
+      tm, [&](const Vec3& x) { return dom.contains(x) ? ms.labels[argmax_bounded(ms, bounds, x)] : outside; },
+      p.label);
 
   auto present = [&] {
     std::set<int> s(tm.labels.begin(), tm.labels.end());

@@ -106,14 +106,11 @@ struct CellProjectParams {
   double max_step = 0;       ///< longest single step, world units (0 = unlimited)
   bool check_dominance = true;  ///< also require f_o <= f_cell + tolerance for every other material o
   /// Optional value bounds of m.fields[o] (null entries allowed; see
-  /// dominance_bounds): a material whose bound already decides the
+  /// material_bounds): a material whose bound already decides the
   /// dominance check is not evaluated. The result is the same either way.
   const std::vector<std::shared_ptr<const ValueBounds>>* bounds = nullptr;
 };
 
-/// Value bounds of every field of the set over blocks of `block` voxels
-/// (null where a field has none), for CellProjectParams::bounds.
-std::vector<std::shared_ptr<const ValueBounds>> dominance_bounds(const MaterialSet& m, int block = 4);
 
 struct CellProjection {
   Vec3 x;                  ///< final point

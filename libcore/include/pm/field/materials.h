@@ -39,6 +39,20 @@ struct MaterialSet {
   double resolution() const;
 };
 
+/// Value bounds of every field of the set over blocks of `block` voxels
+/// (ScalarField::value_bounds; null where a field has none).
+using MaterialBounds = std::vector<std::shared_ptr<const ValueBounds>>;
+MaterialBounds material_bounds(const MaterialSet& m, int block = 4);
+
+/// m.argmax(p), the same index, without evaluating the materials whose
+/// bounds put them below another material's lower bound at p.
+std::size_t argmax_bounded(const MaterialSet& m, const MaterialBounds& b, const Vec3& p);
+
+/// The label of the argmax at every node of `grid` (its dims and geometry;
+/// int32 voxels): `volconv --argmax`. Bounded and parallel over slices; the
+/// same labels as label_at at each node.
+Volume argmax_labels(const MaterialSet& m, const Volume& grid);
+
 /// The region of material i as a field negative inside it:
 /// g_i(x) = d_i(x) - min_{j != i} d_j(x) (the best other indicator minus
 /// f_i), zero on the interfaces of i. Its gradient is the difference of the
