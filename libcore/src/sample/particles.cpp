@@ -233,7 +233,8 @@ ParticleResult SurfaceRun::run(const std::vector<Vec3>& seeds) {
     const std::string label =
         levels > 0 ? "level " + std::to_string(levels - level + 1) + "/" + std::to_string(levels + 1) : "relax";
     e_.set_tolerance(level > 0 ? std::max(p_.tolerance, p_.coarse_tolerance) : p_.tolerance);
-    e_.set_population_tolerance(level > 0 ? std::max(p_.population_tolerance, p_.coarse_population_tolerance) : p_.population_tolerance);
+    e_.set_population_tolerance(level > 0 ? std::max(p_.population_tolerance, p_.coarse_population_tolerance)
+                                          : p_.population_tolerance);
     const Engine::LevelResult lr = e_.relax(label, p_.count != 0);
     conv = lr.converged;
     res.iterations += lr.iterations;

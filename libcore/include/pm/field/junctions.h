@@ -29,7 +29,6 @@
 // Everything is in world units (f is a signed distance: positive inside).
 #include <array>
 #include <cstddef>
-#include <memory>
 #include <vector>
 
 #include "pm/base/vec.h"
@@ -108,7 +107,7 @@ struct CellProjectParams {
   /// Optional value bounds of m.fields[o] (null entries allowed; see
   /// material_bounds): a material whose bound already decides the
   /// dominance check is not evaluated. The result is the same either way.
-  const std::vector<std::shared_ptr<const ValueBounds>>* bounds = nullptr;
+  const MaterialBounds* bounds = nullptr;
 };
 
 

@@ -12,7 +12,6 @@
 // sampled first, fixed, and repel the higher ones.
 #include <cstdint>
 #include <map>
-#include <memory>
 #include <vector>
 
 #include "pm/field/junctions.h"
@@ -75,7 +74,7 @@ class JunctionConstraint {
   double tol_;
   // Value bounds of the material fields: most dominance checks are decided
   // without evaluating the materials far from the cell (same result).
-  std::vector<std::shared_ptr<const ValueBounds>> bounds_;
+  MaterialBounds bounds_;
   std::vector<JunctionCell> cells_;
   std::map<JunctionCell, std::int32_t> ids_;
   std::vector<char> vis_;  // vis_[a * nc + b]: cell b bounds cell a (b ⊇ a, b != a)
