@@ -186,6 +186,8 @@ EXTRA = [
      "coarse population tolerance"),
     ("particles", "--step-factor 1",
      ["--implicit", "sphere", "--spacing", "0.3", "-o", o(".ply"), "--step-factor", "1"], 2, "step factor"),
+    ("particles", "--step-control bogus",
+     ["--implicit", "sphere", "--spacing", "0.3", "-o", o(".ply"), "--step-control", "bogus"], 2, "step-control"),
     ("multiparticles", "--step-factor 0.5",
      ["--materials", MASK, "--spacing", "1", "-o", o(".ply"), "--step-factor", "0.5"], 2, "step factor"),
     # unsupported extensions of the other outputs and an unknown --frame (issue 21), inputs missing

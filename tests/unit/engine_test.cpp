@@ -69,6 +69,25 @@ TrilinearElements sheared_hex() {
   return TrilinearElements({c});
 }
 
+// The quadratic step control on an exact parabola e(λ) = -gλ + cλ²
+// (g = 2, c = 1/2, minimum at λ = g/2c = 2): one trial, at any step, finds
+// the minimiser, and the next step is kStepOverRelax times it within the
+// bounds.
+TEST(EngineStep, QuadraticStepFindsTheMinimumOfAParabola) {
+  using engine_constants::kStepOverRelax;
+  const double g = 2, c = 0.5;
+  const auto de = [&](double l) { return -g * l + c * l * l; };
+  for (double l : {0.25, 1.0, 3.0, 6.0})
+    EXPECT_NEAR(quadratic_step(l, g, de(l), 1e-9, 1e9), kStepOverRelax * 2, 1e-12) << "trial step " << l;
+  EXPECT_DOUBLE_EQ(quadratic_step(1.0, g, de(1.0), 0.1, 2.5), 2.5);  // clamped above
+  EXPECT_DOUBLE_EQ(quadratic_step(6.0, g, de(6.0), 4.0, 5.0), 4.0);  // clamped below
+  // A concave stretch (the energy fell faster than the slope says) has no
+  // minimum: the largest step allowed.
+  EXPECT_DOUBLE_EQ(quadratic_step(1.0, g, -3.0, 0.1, 10.0), 10.0);
+  // A linear energy (c = 0) too.
+  EXPECT_DOUBLE_EQ(quadratic_step(1.0, g, -2.0, 0.1, 10.0), 10.0);
+}
+
 TEST(EngineElement, TrilinearJacobianMatchesFiniteDifferences) {
   const TrilinearElements hex = sheared_hex();
   const Vec3 u{0.3, 0.6, 0.8};

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <random>
 
@@ -106,6 +107,43 @@ TEST(SurfaceImprove, ParticleMeshesMeetTheChapter5Targets) {
     for (const Vec3& v : m.vertices) ASSERT_LE(std::fabs(f->value(v)), 1e-5);
     EXPECT_EQ(count_self_intersections(m), 0);
   }
+}
+
+// A fin: vertex c of triangle (a, b, c) pushed across the edge a-b towards
+// the opposite vertex d, so that (a, b, c) faces inwards while its
+// neighbours face out (what the Delaunay surface leaves where three
+// particles line up on a tight bend). The folded pair has no direction of
+// its own; flipping a-b to c-d unfolds it, and every face ends outward.
+TEST(SurfaceImprove, AFoldedTriangleIsFlippedOpen) {
+  const auto sphere = make_implicit("sphere");
+  std::vector<Vec3> pts;
+  for (int i = 0; i < 400; ++i) {
+    const double z = 1 - 2 * (i + 0.5) / 400, r = std::sqrt(1 - z * z), a = 2.39996 * i;
+    pts.push_back({r * std::cos(a), r * std::sin(a), z});
+  }
+  Mesh m = surface_of(pts, *sphere);
+  ASSERT_TRUE(mesh_topology(m).closed_manifold());
+  const auto outward = [&](const std::array<int, 3>& t) {
+    const Vec3 &A = m.vertices[t[0]], &B = m.vertices[t[1]], &C = m.vertices[t[2]];
+    return dot(cross(B - A, C - A), A + B + C) > 0;
+  };
+  for (const auto& t : m.faces) ASSERT_TRUE(outward(t));
+  // Face 0 = (a, b, c); d is the apex of the other face on a-b.
+  const int a = m.faces[0][0], b = m.faces[0][1], c = m.faces[0][2];
+  int d = -1;
+  for (std::size_t f = 1; f < m.faces.size(); ++f)
+    for (int k = 0; k < 3; ++k)
+      if (m.faces[f][k] == b && m.faces[f][(k + 1) % 3] == a) d = m.faces[f][(k + 2) % 3];
+  ASSERT_GE(d, 0);
+  const Vec3 mid = (m.vertices[a] + m.vertices[b]) * 0.5;
+  m.vertices[c] = normalized(mid + (m.vertices[d] - mid) * 0.2);
+  std::size_t inward = 0;
+  for (const auto& t : m.faces) inward += !outward(t);
+  ASSERT_EQ(inward, 1u);  // only (a, b, c) turned over
+  improve_surface(m, *sphere, 0.0);
+  for (const auto& t : m.faces) EXPECT_TRUE(outward(t)) << t[0] << " " << t[1] << " " << t[2];
+  EXPECT_GE(quality(m).rr_min, 0.3);
+  EXPECT_TRUE(mesh_topology(m).closed_manifold());
 }
 
 TEST(SurfaceImprove, OpenOrInconsistentMeshesAreInputErrors) {

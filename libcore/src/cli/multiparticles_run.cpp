@@ -82,10 +82,7 @@ void add_multiparticles_options(CLI::App& app, MultiParticlesRun& cfg) {
   app.add_option("--population-tolerance", cfg.params.population_tolerance,
                  "Converged when at most this fraction of a level's particles wants to split or die")
       ->capture_default_str();
-  app.add_option("--step-factor", cfg.params.step_factor,
-                 "Adaptive step: a particle's step grows by this factor after a first-try acceptance and "
-                 "shrinks by it after a rejection (> 1; the dissertation uses 10)")
-      ->capture_default_str();
+  pm::add_step_options(app, cfg.params.step_control, cfg.params.step_factor);
   app.add_flag("--no-surfaces", cfg.no_surfaces, "Stop after the curves (points and curves only)");
   app.add_flag("--no-junction-repair", cfg.no_repair,
                "Keep surface particles of two interfaces sharing a material that come closer than h/4 (by "
@@ -126,6 +123,7 @@ void run_multiparticles(MultiParticlesRun& cfg, const CommonFlags& flags) {
   st["inputs"] = {{"materials", mo.spec}, {"seeds", seeds_path}, {"labels", labels_path}, {"sizing", sizing_path}};
   st["parameters"] = {{"spacing", p.spacing},     {"energy", energy},
                       {"tolerance", p.tolerance}, {"max_iters", p.max_iters}, {"step_factor", p.step_factor},
+                      {"step_control", pm::step_control_name(p.step_control)},
                       {"kernel", mo.kernel},      {"decimate", decimate},
                       {"surfaces", p.surfaces},   {"population_tolerance", p.population_tolerance}};
   pm::MaterialSet mats;

@@ -163,11 +163,7 @@ void add_particles_options(CLI::App& app, ParticlesRun& cfg) {
                  "spacing per iteration, re-checking it every 8 iterations (0 = off)")
       ->check(CLI::Range(0.0, 0.99))
       ->capture_default_str();
-  app.add_option("--step-factor", cfg.params.step_factor,
-                 "Adaptive step: a particle's step grows by this factor after a first-try acceptance and "
-                 "shrinks by it after a rejection (> 1; the dissertation's 10; 3 needs about half the updates on "
-                 "the folded brain mask but leaves more packing defects on smooth shapes)")
-      ->capture_default_str();
+  pm::add_step_options(app, cfg.params.step_control, cfg.params.step_factor);
   app.add_flag("--quads", cfg.params.quads,
                "Quad packing (Chapter 7): two particle types, like pairs √2 farther apart than unlike ones, "
                "settling towards a checkerboard on a square lattice with unlike neighbours --spacing apart; "
@@ -306,6 +302,7 @@ void run_particles(ParticlesRun& cfg, const CommonFlags& flags) {
                       {"seed_thinning", p.seed_thinning},
                       {"settled_move", p.settled_move},
                       {"step_factor", p.step_factor},
+                      {"step_control", pm::step_control_name(p.step_control)},
                       {"quads", p.quads}};
   const std::unique_ptr<pm::ScalarField> field = load_field(implicit, input, kernel, p.iso);
   std::unique_ptr<pm::SizingField> sizing;

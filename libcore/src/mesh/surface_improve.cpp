@@ -252,7 +252,13 @@ class Improver {
       };
       const double dev_old = dev(a, 0) + dev(b, 0) + dev(c, 0) + dev(d, 0);
       const double dev_new = dev(a, -1) + dev(b, -1) + dev(c, 1) + dev(d, 1);
-      const bool quality_flip = rr_old < p_.poor && rr_new > p_.quality_gain * rr_old && dev_new <= dev_old + 2;
+      // A folded pair (its triangles face apart: a fin the Delaunay surface
+      // leaves where three particles line up on a tight bend) is unfolded
+      // whatever the valences.
+      const Vec3 nf_old = normalized(face_normal(A, B, C)), ng_old = normalized(face_normal(B, A, D));
+      const bool folded = dot(nf_old, ng_old) < 0;
+      const bool quality_flip =
+          rr_old < p_.poor && rr_new > p_.quality_gain * rr_old && (folded || dev_new <= dev_old + 2);
       // Never below min(old, 0.5): the mesh's worst triangle never gets worse
       // than that (the same rule as the smoothing's).
       const bool valence_flip =
@@ -260,8 +266,20 @@ class Improver {
       if (!quality_flip && !valence_flip) continue;
       // Only now the edge table (a cache miss per lookup): most edges fail the tests above.
       if (edges_.count(undirected(c, d))) continue;
-      // No fold: the new triangles face the way the old pair did and each other.
-      const Vec3 n_old = normalized(normalized(face_normal(A, B, C)) + normalized(face_normal(B, A, D)));
+      // No fold: the new triangles face the way the old pair did and each
+      // other. A folded pair has no direction of its own: its four outer
+      // neighbours give it.
+      Vec3 n_old = normalized(nf_old + ng_old);
+      if (folded) {
+        Vec3 around;
+        for (const int out : {opp_[3 * f + (k + 1) % 3], opp_[3 * f + (k + 2) % 3], opp_[3 * g + (mo + 1) % 3],
+                              opp_[3 * g + (mo + 2) % 3]}) {
+          if (out < 0) continue;
+          const auto& t = m_.faces[std::size_t(out) / 3];
+          around += normalized(face_normal(V[t[0]], V[t[1]], V[t[2]]));
+        }
+        n_old = normalized(around);
+      }
       const Vec3 n1 = normalized(face_normal(A, D, C)), n2 = normalized(face_normal(B, C, D));
       if (!(dot(n1, n_old) >= cos_fold_ && dot(n2, n_old) >= cos_fold_ && dot(n1, n2) >= cos_fold_)) continue;
       // The new edge must follow the surface about as well as the old one.

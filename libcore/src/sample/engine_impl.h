@@ -242,6 +242,10 @@ void ParticleEngine<C>::update(std::size_t i, std::size_t cell, std::vector<Cand
   P.moved = 0;
   const Vec3 vt = c_.tangent(P.p, v);
   if (!(norm2(vt) > 0)) return;
+  // The energy's slope along the move: v is the force -∇e, so e(λ) starts
+  // as e_0 - λ v·v_t. A slope that is not positive leaves the factor rule.
+  const double slope = dot(v, vt);
+  const bool quadratic = p_.step_control == StepControl::quadratic && slope > 0;
   const double lambda_max = kLambdaMaxPerSpacing2 * P.spacing * P.spacing;
   double lambda = std::min(P.lambda, lambda_max);
   const double step_cap2 = P.spacing * P.spacing;
@@ -271,6 +275,7 @@ void ParticleEngine<C>::update(std::size_t i, std::size_t cell, std::vector<Cand
       else
         gather(P.p.x, reach, i, cell, buf);
     }
+    double next = lambda / p_.step_factor;  // the step after a rejection
     if (ok) {
       const double e1 = energy_at(q.x, q.n, attr, P.type, buf, nullptr, nullptr);
       if (e1 <= e0) {
@@ -281,13 +286,18 @@ void ParticleEngine<C>::update(std::size_t i, std::size_t cell, std::vector<Cand
         P.spacing = local_spacing(attr, P.type);
         P.energy = e1;
         P.delta = e1 - e0;
-        P.lambda = first ? std::min(lambda * p_.step_factor, lambda_max) : lambda;
+        if (quadratic)
+          P.lambda = std::min(
+              quadratic_step(lambda, slope, e1 - e0, lambda / p_.step_factor, lambda * p_.step_factor), lambda_max);
+        else
+          P.lambda = first ? std::min(lambda * p_.step_factor, lambda_max) : lambda;
         ls.field_evaluations += pr.evaluations;
         return;
       }
+      if (quadratic) next = quadratic_step(lambda, slope, e1 - e0, lambda / p_.step_factor, lambda / 2);
     }
     ++ls.rejected;
-    lambda /= p_.step_factor;
+    lambda = next;
     if (lambda <= kLambdaMin) {
       P.lambda = kLambdaMin;
       ls.field_evaluations += pr.evaluations;

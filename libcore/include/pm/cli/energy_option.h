@@ -1,5 +1,5 @@
 #pragma once
-// --energy, shared by the particle tools: the pair energy by name.
+// --energy, --step-control and --step-factor, shared by the particle tools.
 #include <CLI/CLI.hpp>
 #include <string>
 
@@ -11,5 +11,10 @@ namespace pm {
 void add_energy_option(CLI::App& app, std::string& name);
 /// The energy of a --energy name. \throw UsageError for another name.
 ParticleEnergy energy_named(const std::string& name);
+
+/// Adds --step-control (quadratic | factor) and --step-factor (> 1).
+void add_step_options(CLI::App& app, StepControl& control, double& factor);
+/// "quadratic" or "factor", for --stats.
+const char* step_control_name(StepControl c);
 
 }  // namespace pm

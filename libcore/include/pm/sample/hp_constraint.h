@@ -111,6 +111,7 @@ struct HpParticleParams {
   double settled_move = 0;
   int reproject_steps = 6;  ///< Newton steps after a tangent move
   double step_factor = engine_constants::kLambdaFactor;  ///< adaptive step factor (> 1), see EngineParams
+  StepControl step_control = StepControl::factor;        ///< see StepControl
 };
 
 struct HpParticleResult {

@@ -87,6 +87,7 @@ struct MultiParticleParams {
   double settled_move = 0;  ///< settled-particle skipping, see ParticleParams::settled_move (0 = off)
   int reproject_steps = engine_constants::kReprojectSteps;  ///< (Gauss-)Newton steps after a tangent move (>= 1)
   double step_factor = engine_constants::kLambdaFactor;  ///< adaptive step factor (> 1), see EngineParams
+  StepControl step_control = StepControl::factor;        ///< see StepControl
 };
 
 /// Per-level counts (level 0: quadruple points, 1: triple curves, 2: surfaces).

@@ -84,8 +84,10 @@ struct ParticleParams {
   double seed_thinning = 0;
   int reproject_steps = engine_constants::kReprojectSteps;  ///< (Gauss-)Newton steps after a tangent move (>= 1)
   /// Adaptive step: λ_i × this after a first-try acceptance, ÷ after a
-  /// rejection (> 1; see EngineParams::step_factor).
+  /// rejection (> 1; see EngineParams::step_factor); with the quadratic step
+  /// control the bound of one change.
   double step_factor = engine_constants::kLambdaFactor;
+  StepControl step_control = StepControl::quadratic;  ///< see StepControl
   /// Quad packing (SPEC §7, issue #20): two particle types, mixed at random
   /// (half each) at initialisation; like pairs repel √2 farther than unlike
   /// ones (pm::set_quad_types), so the packing settles towards a checkerboard
