@@ -2,11 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <sstream>
 #include <unordered_map>
 #include <unordered_set>
 
 #include "pm/base/error.h"
+#include "pm/base/parallel.h"
 #include "pm/mesh/quad_mesh.h"
 
 namespace pm {
@@ -89,6 +91,10 @@ CreaseCount count_creases(const Mesh& m, const std::vector<int>& faces, double a
   return c;
 }
 
+namespace {
+void measure_without_self_intersections(const Mesh& m, const MeshQualityParams& p, MeshQuality& q);
+}  // namespace
+
 MeshQuality mesh_quality(const Mesh& m, const MeshQualityParams& p) {
   m.validate("mesh_quality");
   MeshQuality q;
@@ -98,7 +104,33 @@ MeshQuality mesh_quality(const Mesh& m, const MeshQualityParams& p) {
   q.rr_histogram.assign(10, 0);
   q.valence_histogram.assign(16, 0);
   if (m.faces.empty()) return q;
+  // The self-intersection test (CGAL, the largest part) runs beside the rest.
+  pm::parallel_for(0, 2, [&](int task) {
+    if (task == 0) {
+      if (p.self_intersections) q.self_intersecting_pairs = count_self_intersections(m);
+    } else {
+      measure_without_self_intersections(m, p, q);
+    }
+  });
+  return q;
+}
 
+namespace {
+
+// Distances of points 0..n-1 to the surface, in parallel; NaN where the
+// projection fails, 0 for the points `point` declines (returns false).
+std::vector<double> surface_distances(const ScalarField& f, double iso, std::size_t n,
+                                      const std::function<bool(std::size_t, Vec3&)>& point) {
+  std::vector<double> d(n, 0.0);
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
+    Vec3 x;
+    for (std::size_t i = r.begin(); i != r.end(); ++i)
+      if (point(i, x)) d[i] = surface_distance(f, iso, x);
+  });
+  return d;
+}
+
+void measure_without_self_intersections(const Mesh& m, const MeshQualityParams& p, MeshQuality& q) {
   q.rr_min = 1e300;
   q.min_angle_deg = 180;
   double rr_sum = 0;
@@ -172,11 +204,16 @@ MeshQuality mesh_quality(const Mesh& m, const MeshQualityParams& p) {
     std::vector<char> is_used(m.vertices.size(), 0);
     for (const auto& f : m.faces)
       for (int v : f) is_used[v] = 1;
+    // Computed in parallel, summed in order: the same bits for any thread count.
+    const std::vector<double> dv = surface_distances(*p.field, p.iso, m.vertices.size(), [&](std::size_t i, Vec3& x) {
+      x = m.vertices[i];
+      return is_used[i] != 0;
+    });
     double sum = 0;
     std::size_t n = 0;
     for (std::size_t i = 0; i < m.vertices.size(); ++i)
       if (is_used[i]) {
-        const double d = surface_distance(*p.field, p.iso, m.vertices[i]);
+        const double d = dv[i];
         if (std::isnan(d)) {
           ++q.dist_failed;
           continue;
@@ -188,9 +225,12 @@ MeshQuality mesh_quality(const Mesh& m, const MeshQualityParams& p) {
     q.dist_vertex_mean = n ? sum / double(n) : 0;
     sum = 0;
     n = 0;
-    for (const auto& f : m.faces) {
-      const Vec3 c = (m.vertices[f[0]] + m.vertices[f[1]] + m.vertices[f[2]]) / 3.0;
-      const double d = surface_distance(*p.field, p.iso, c);
+    const std::vector<double> dc = surface_distances(*p.field, p.iso, m.faces.size(), [&](std::size_t i, Vec3& x) {
+      const auto& f = m.faces[i];
+      x = (m.vertices[f[0]] + m.vertices[f[1]] + m.vertices[f[2]]) / 3.0;
+      return true;
+    });
+    for (const double d : dc) {
       if (std::isnan(d)) {
         ++q.dist_failed;
         continue;
@@ -205,9 +245,9 @@ MeshQuality mesh_quality(const Mesh& m, const MeshQualityParams& p) {
   q.interior_edges = creases.interior_edges;
   q.creased_edges_20 = creases.creased;
   q.crease_share_20 = creases.share();
-  if (p.self_intersections) q.self_intersecting_pairs = count_self_intersections(m);
-  return q;
 }
+
+}  // namespace
 
 Json to_json(const MeshQuality& q) {
   Json j;

@@ -32,7 +32,13 @@ bool self_intersecting_faces(const Mesh& m, std::vector<std::pair<int, int>>& ou
   PMP::polygon_soup_to_polygon_mesh(pts, polys, sm);  // faces keep the soup's order
   std::vector<std::pair<SM::Face_index, SM::Face_index>> pairs;
   PMP::self_intersections<CGAL::Parallel_if_available_tag>(sm, std::back_inserter(pairs));
-  for (const auto& p : pairs) out.emplace_back(int(std::size_t(p.first)), int(std::size_t(p.second)));
+  // Found on several threads: sorted, each pair (lower, higher), so that the
+  // list does not depend on the thread count.
+  for (const auto& p : pairs) {
+    const int a = int(std::size_t(p.first)), b = int(std::size_t(p.second));
+    out.emplace_back(std::min(a, b), std::max(a, b));
+  }
+  std::sort(out.begin(), out.end());
   return true;
 }
 
