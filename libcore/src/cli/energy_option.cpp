@@ -31,10 +31,10 @@ ParticleEnergy energy_named(const std::string& name) {
   throw UsageError("--energy \"" + name + "\": expected cotangent or radial");
 }
 
-void add_step_options(CLI::App& app, StepControl& control, double& factor) {
+CLI::Option* add_step_options(CLI::App& app, StepControl& control, double& factor) {
   std::vector<std::string> names;
   for (const auto& c : kStepControls) names.emplace_back(c.first);
-  app.add_option_function<std::string>(
+  CLI::Option* opt = app.add_option_function<std::string>(
          "--step-control",
          [&control](const std::string& name) {
            for (const auto& c : kStepControls)
@@ -42,13 +42,14 @@ void add_step_options(CLI::App& app, StepControl& control, double& factor) {
          },
          "Adaptive step (SPEC 3): quadratic = fit a parabola to each trial's energy and step to 1.75x its "
          "minimum, within a factor --step-factor; factor = the dissertation's rule, x --step-factor after a "
-         "first-try acceptance, / after a rejection. quadratic (particles' default) needs about half the updates on the folded "
-         "brain mask and packs at least as well")
+         "first-try acceptance, / after a rejection. quadratic (particles' default; --quads: factor unless "
+         "given) needs about half the updates on the folded brain mask and packs at least as well there")
       ->check(CLI::IsMember(names))
       ->default_str(step_control_name(control));
   app.add_option("--step-factor", factor,
                  "Largest change of a particle's step after one trial (> 1; the dissertation's 10)")
       ->capture_default_str();
+  return opt;
 }
 
 const char* step_control_name(StepControl c) {

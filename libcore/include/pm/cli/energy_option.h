@@ -12,8 +12,9 @@ void add_energy_option(CLI::App& app, std::string& name);
 /// The energy of a --energy name. \throw UsageError for another name.
 ParticleEnergy energy_named(const std::string& name);
 
-/// Adds --step-control (quadratic | factor) and --step-factor (> 1).
-void add_step_options(CLI::App& app, StepControl& control, double& factor);
+/// Adds --step-control (quadratic | factor) and --step-factor (> 1); returns
+/// the --step-control option (to tell whether it was given).
+CLI::Option* add_step_options(CLI::App& app, StepControl& control, double& factor);
 /// "quadratic" or "factor", for --stats.
 const char* step_control_name(StepControl c);
 

@@ -37,6 +37,7 @@ struct ParticlesRun {
   CLI::Option* tol_opt = nullptr;
   CLI::Option* coarse_tol_opt = nullptr;
   CLI::Option* coarse_pop_opt = nullptr;
+  CLI::Option* step_control_opt = nullptr;
   CLI::Option* iters_opt = nullptr;
   CLI::Option* ctf = nullptr;
   bool volume = false;
