@@ -22,6 +22,16 @@ Mesh surface_of(const std::vector<Vec3>& pts, const ScalarField& f) {
   return material_surface(tm, 1, 0);
 }
 
+// n points spread evenly over the unit sphere (a Fibonacci spiral).
+std::vector<Vec3> fibonacci_sphere(int n) {
+  std::vector<Vec3> pts;
+  for (int i = 0; i < n; ++i) {
+    const double z = 1 - 2 * (i + 0.5) / n, r = std::sqrt(1 - z * z), a = 2.39996 * i;
+    pts.push_back({r * std::cos(a), r * std::sin(a), z});
+  }
+  return pts;
+}
+
 struct Quality {
   double rr_min = 1, rr_mean = 0, valence6 = 0;
 };
@@ -116,12 +126,7 @@ TEST(SurfaceImprove, ParticleMeshesMeetTheChapter5Targets) {
 // its own; flipping a-b to c-d unfolds it, and every face ends outward.
 TEST(SurfaceImprove, AFoldedTriangleIsFlippedOpen) {
   const auto sphere = make_implicit("sphere");
-  std::vector<Vec3> pts;
-  for (int i = 0; i < 400; ++i) {
-    const double z = 1 - 2 * (i + 0.5) / 400, r = std::sqrt(1 - z * z), a = 2.39996 * i;
-    pts.push_back({r * std::cos(a), r * std::sin(a), z});
-  }
-  Mesh m = surface_of(pts, *sphere);
+  Mesh m = surface_of(fibonacci_sphere(400), *sphere);
   ASSERT_TRUE(mesh_topology(m).closed_manifold());
   const auto outward = [&](const std::array<int, 3>& t) {
     const Vec3 &A = m.vertices[t[0]], &B = m.vertices[t[1]], &C = m.vertices[t[2]];
@@ -148,12 +153,7 @@ TEST(SurfaceImprove, AFoldedTriangleIsFlippedOpen) {
 
 TEST(SurfaceImprove, OpenOrInconsistentMeshesAreInputErrors) {
   const auto sphere = make_implicit("sphere");
-  std::vector<Vec3> pts;
-  for (int i = 0; i < 200; ++i) {
-    const double z = 1 - 2 * (i + 0.5) / 200, r = std::sqrt(1 - z * z), a = 2.39996 * i;
-    pts.push_back({r * std::cos(a), r * std::sin(a), z});
-  }
-  Mesh m = surface_of(pts, *sphere);
+  Mesh m = surface_of(fibonacci_sphere(200), *sphere);
   Mesh open = m;
   open.faces.pop_back();
   EXPECT_THROW(improve_surface(open, *sphere, 0.0), InputError);
