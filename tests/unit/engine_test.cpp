@@ -69,6 +69,62 @@ TrilinearElements sheared_hex() {
   return TrilinearElements({c});
 }
 
+// The bins' sub-cells: for points on a sphere (the surface case the
+// sub-cells are for) and balls of several radii around points near it,
+// the ranges visit_box gives over the 3x3x3 block hold every point within
+// the radius, each once, and cover the bin's points exactly once when the
+// box spans the bin. Bins keep their points whatever the sub-cell count.
+TEST(EngineBins, SubCellsVisitEveryPointWithinTheBox) {
+  std::vector<Vec3> x;
+  const int n = 4000;
+  for (int k = 0; k < n; ++k) {  // a Fibonacci sphere of radius 3
+    const double z = 1 - (2 * k + 1.0) / n, r = std::sqrt(1 - z * z), a = k * 2.399963229728653;
+    x.push_back(3.0 * Vec3{r * std::cos(a), r * std::sin(a), z});
+  }
+  const std::vector<char> all;
+  SampleBins one, three;
+  one.build(x, 1.0, all, 1);
+  three.build(x, 1.0, all, 3);
+  ASSERT_EQ(one.cells(), three.cells());
+  std::vector<Vec3> y(x.size());
+  for (std::size_t i = 0; i < x.size(); ++i) y[i] = x[three.order()[i]];
+  for (std::size_t c = 0; c < three.cells(); ++c) {
+    EXPECT_EQ(one.end(c) - one.begin(c), three.end(c) - three.begin(c));
+    std::size_t seen = 0;
+    three.visit_box(c, y[three.begin(c)], 10.0, [&](std::uint32_t b, std::uint32_t e) {
+      EXPECT_GE(b, three.begin(c));
+      EXPECT_LE(e, three.end(c));
+      seen += e - b;
+    });
+    EXPECT_EQ(seen, std::size_t(three.end(c) - three.begin(c)));
+  }
+  std::size_t fewer = 0, total = 0;
+  for (std::size_t i = 0; i < y.size(); i += 37)
+    for (double r : {0.05, 0.2, 0.45}) {
+      const Vec3 p = y[i] * (1 + 0.02 * r);
+      std::int32_t block[27];
+      ASSERT_TRUE(three.block_of(p, block));
+      std::vector<int> hits(y.size(), 0);
+      std::size_t scanned = 0;
+      for (int k = 0; k < 27; ++k)
+        if (block[k] >= 0)
+          three.visit_box(std::size_t(block[k]), p, r, [&](std::uint32_t b, std::uint32_t e) {
+            for (std::uint32_t q = b; q < e; ++q) ++hits[q];
+            scanned += e - b;
+          });
+      std::size_t in_block = 0;
+      for (int k = 0; k < 27; ++k)
+        if (block[k] >= 0) in_block += three.end(std::size_t(block[k])) - three.begin(std::size_t(block[k]));
+      for (std::size_t q = 0; q < y.size(); ++q) {
+        EXPECT_LE(hits[q], 1);
+        if (norm(y[q] - p) <= r) EXPECT_EQ(hits[q], 1) << "point " << q << " within " << r;
+      }
+      fewer += scanned < in_block;
+      ++total;
+    }
+  EXPECT_GT(fewer, total / 2);  // the sub-cells do prune
+}
+
 // The quadratic step control on an exact parabola e(λ) = -gλ + cλ²
 // (g = 2, c = 1/2, minimum at λ = g/2c = 2): one trial, at any step, finds
 // the minimiser, and the next step is kStepOverRelax times it within the

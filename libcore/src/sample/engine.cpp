@@ -160,7 +160,7 @@ double particle_ideal_energy(ParticleEnergy e) {
 
 // --- bins ----------------------------------------------------------------------
 
-void SampleBins::build(const std::vector<Vec3>& x, double w, const std::vector<char>& active) {
+void SampleBins::build(const std::vector<Vec3>& x, double w, const std::vector<char>& active, int sub) {
   const std::size_t n = x.size();
   Box bb;
   for (const Vec3& p : x) bb.extend(p);
@@ -173,6 +173,12 @@ void SampleBins::build(const std::vector<Vec3>& x, double w, const std::vector<c
   nx_ = std::uint64_t(std::floor(ext.x / w)) + 3;
   ny_ = std::uint64_t(std::floor(ext.y / w)) + 3;
   nz_ = std::uint64_t(std::floor(ext.z / w)) + 3;
+  sub_ = std::max(1, sub);
+  const std::uint64_t S = std::uint64_t(sub_), S3 = S * S * S;
+  auto sub_of = [&](double t, std::uint64_t i) {
+    const double f = (t - double(i)) * double(S);
+    return f <= 0 ? std::uint64_t(0) : std::min(std::uint64_t(f), S - 1);
+  };
 
   keys_.resize(n);
   keys_tmp_.resize(n);
@@ -183,12 +189,13 @@ void SampleBins::build(const std::vector<Vec3>& x, double w, const std::vector<c
     const std::uint64_t ix = std::min<std::uint64_t>(std::uint64_t(std::max(0.0, t.x)), nx_ - 2);
     const std::uint64_t iy = std::min<std::uint64_t>(std::uint64_t(std::max(0.0, t.y)), ny_ - 2);
     const std::uint64_t iz = std::min<std::uint64_t>(std::uint64_t(std::max(0.0, t.z)), nz_ - 2);
-    keys_[i] = ix + nx_ * (iy + ny_ * iz);
+    const std::uint64_t sc = sub_of(t.x, ix) + S * (sub_of(t.y, iy) + S * sub_of(t.z, iz));
+    keys_[i] = (ix + nx_ * (iy + ny_ * iz)) * S3 + sc;
     order_[i] = std::uint32_t(i);
   }
   // LSD radix sort of (key, index): counting sort per 11-bit digit; stable,
   // so points keep their previous relative order within a bin.
-  const std::uint64_t total = nx_ * ny_ * nz_;
+  const std::uint64_t total = nx_ * ny_ * nz_ * S3;
   int bits = 1;
   while (bits < 64 && (std::uint64_t(1) << bits) < total) ++bits;
   constexpr int kDigit = 11;
@@ -212,15 +219,23 @@ void SampleBins::build(const std::vector<Vec3>& x, double w, const std::vector<c
     order_.swap(order_tmp_);
   }
 
-  // Cells: runs of equal keys.
+  // Cells: runs of equal bin keys; per cell, where each sub-cell starts.
   cell_key_.clear();
   cell_start_.clear();
-  for (std::size_t i = 0; i < n; ++i)
-    if (i == 0 || keys_[i] != keys_[i - 1]) {
-      cell_key_.push_back(keys_[i]);
+  sub_start_.clear();
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint64_t bin = keys_[i] / S3;
+    if (i == 0 || bin != keys_[i - 1] / S3) {
+      if (i > 0) sub_start_.resize(cell_key_.size() * (S3 + 1), std::uint32_t(i));
+      cell_key_.push_back(bin);
       cell_start_.push_back(std::uint32_t(i));
     }
+    // Sub-cells up to this point's start here (empty ones included).
+    const std::size_t base = (cell_key_.size() - 1) * (S3 + 1);
+    sub_start_.resize(base + keys_[i] % S3 + 1, std::uint32_t(i));
+  }
   cell_start_.push_back(std::uint32_t(n));
+  sub_start_.resize(cell_key_.size() * (S3 + 1), std::uint32_t(n));
   const std::size_t nc = cell_key_.size();
 
   // Open-addressing hash key -> cell index + 1.

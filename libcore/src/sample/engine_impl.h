@@ -141,10 +141,10 @@ double ParticleEngine<C>::energy_at(const Vec3& x, const Vec3& n, double a, std:
     const double d2 = norm2(d);
     double al;
     if (sizing) {
-      al = std::max(std::max(part, c.part), alpha_floor_);
+      al = std::max(std::max(part, c.a), alpha_floor_);
       if (typed_) al /= p_.type_scale[t][c.type];
     } else {
-      al = alpha(a, c.attr, t, c.type);
+      al = alpha(a, c.a, t, c.type);
     }
     if (al * al * d2 >= 1.0) continue;
     ++count;
@@ -175,28 +175,35 @@ void ParticleEngine<C>::gather(const Vec3& x, double reach, std::size_t self, st
     const double need = reach + cell_moved_[cell];
     if (need + fine_.width() < bins_.width()) {  // the rebuilt grid may be wider than fine_w_
       const Particle& P0 = parts_[self];
+      Cand tmp;
       fine_.visit_ball(x, need, [&](std::uint32_t q) {
         if (q == self || norm2(pos_[q] - x) >= r2) return;
-        const Particle& o = parts_[q];
-        if (sees(P0, o)) out.push_back(cand_of(P0, o));
+        if (kCached || sees(P0, parts_[q])) out.push_back(neighbour(P0, q, tmp));
       });
       return;
     }
   }
   const std::int32_t* nb = bins_.block(cell);
+  // A candidate within reach of x lies within reach + its move since the
+  // binning of where it was binned; moves are bounded per bin (bin_moved_).
+  double moved = 0;
+  for (int k = 0; k < 27; ++k)
+    if (nb[k] >= 0) moved = std::max(moved, bin_moved_[std::size_t(nb[k])]);
+  const double pad = reach + moved;
   int m[3];
-  bins_.axis_masks(cell, x, reach + d_max_, m);
+  bins_.axis_masks(cell, x, pad, m);
   const Particle& P = parts_[self];
+  Cand tmp;
   for (int k = 0; k < 27; ++k) {
     if (nb[k] < 0) continue;
     if (!((m[0] >> (k % 3)) & 1) || !((m[1] >> ((k / 3) % 3)) & 1) || !((m[2] >> (k / 9)) & 1)) continue;
-    const std::size_t c = std::size_t(nb[k]);
-    for (std::uint32_t q = bins_.begin(c); q < bins_.end(c); ++q) {
-      if (norm2(pos_[q] - x) >= r2 || q == self) continue;
-      const Particle& o = parts_[q];
-      if (!sees(P, o)) continue;
-      out.push_back(cand_of(P, o));
-    }
+    bins_.visit_box(std::size_t(nb[k]), x, pad, [&](std::uint32_t b, std::uint32_t e) {
+      for (std::uint32_t q = b; q < e; ++q) {
+        if (norm2(pos_[q] - x) >= r2 || q == self) continue;
+        if (!kCached && !sees(P, parts_[q])) continue;
+        out.push_back(neighbour(P, q, tmp));
+      }
+    });
   }
 }
 
@@ -205,10 +212,11 @@ void ParticleEngine<C>::gather_list(const Vec3& x, double reach, std::size_t sel
   out.clear();
   const double r2 = reach * reach;
   const Particle& P = parts_[self];
+  Cand tmp;
   for (std::uint32_t k = nbr_start_[self]; k < nbr_start_[self + 1]; ++k) {
     const std::uint32_t q = nbr_[k];
     if (norm2(pos_[q] - x) >= r2) continue;
-    out.push_back(cand_of(P, parts_[q]));
+    out.push_back(neighbour(P, q, tmp));
   }
 }
 
@@ -286,6 +294,7 @@ void ParticleEngine<C>::update(std::size_t i, std::size_t cell, std::vector<Cand
         P.spacing = local_spacing(attr, P.type);
         P.energy = e1;
         P.delta = e1 - e0;
+        cache(i);
         if (quadratic)
           P.lambda = std::min(
               quadratic_step(lambda, slope, e1 - e0, lambda / p_.step_factor, lambda * p_.step_factor), lambda_max);
@@ -346,12 +355,19 @@ void ParticleEngine<C>::rebin(bool for_lists) {
     pos_[i] = parts_[i].p.x;
     active_[i] = parts_[i].fixed ? 0 : 1;
   }
-  bins_.build(pos_, w, active_);
+  // Engines with the fine grid gather from it: their bins need no sub-cells.
+  bins_.build(pos_, w, active_, p_.fine_bins ? 1 : p_.sub_bins);
   const std::vector<std::uint32_t>& order = bins_.order();
   scratch_.resize(n);
   for (std::size_t i = 0; i < n; ++i) scratch_[i] = parts_[order[i]];
   parts_.swap(scratch_);
   for (std::size_t i = 0; i < n; ++i) pos_[i] = parts_[i].p.x;
+  binned_ = pos_;
+  bin_moved_.assign(bins_.cells(), 0.0);
+  if constexpr (kCached) {
+    cands_.resize(n);
+    for (std::size_t i = 0; i < n; ++i) cache(i);
+  }
   if (p_.fine_bins && !for_lists) build_fine();
 }
 
@@ -422,19 +438,21 @@ void ParticleEngine<C>::build_lists() {
             radius_bound(step_factor * step_factor * P.spacing) + step_factor * P.spacing + kListSkin * P.spacing;
         // Skip the neighbour bins farther than the longest list reach along an axis.
         int m[3];
-        bins_.axis_masks(c, P.p.x, reach + kListSkin * d_max_, m);
+        const double pad = reach + kListSkin * d_max_;
+        bins_.axis_masks(c, P.p.x, pad, m);
         for (int k = 0; k < 27; ++k) {
           if (nb[k] < 0) continue;
           if (!((m[0] >> (k % 3)) & 1) || !((m[1] >> ((k / 3) % 3)) & 1) || !((m[2] >> (k / 9)) & 1)) continue;
-          const std::size_t cc = std::size_t(nb[k]);
-          for (std::uint32_t q = bins_.begin(cc); q < bins_.end(cc); ++q) {
-            const double rq = reach + kListSkin * parts_[q].spacing;
-            if (q == i || norm2(pos_[q] - P.p.x) >= rq * rq || !sees(P, parts_[q])) continue;
-            if (fill)
-              nbr_[at++] = q;
-            else
-              ++count;
-          }
+          bins_.visit_box(std::size_t(nb[k]), P.p.x, pad, [&](std::uint32_t b, std::uint32_t e) {
+            for (std::uint32_t q = b; q < e; ++q) {
+              const double rq = reach + kListSkin * parts_[q].spacing;
+              if (q == i || norm2(pos_[q] - P.p.x) >= rq * rq || !sees(P, parts_[q])) continue;
+              if (fill)
+                nbr_[at++] = q;
+              else
+                ++count;
+            }
+          });
         }
       }
       if (!fill) nbr_start_[i + 1] = count;
@@ -499,13 +517,10 @@ double ParticleEngine<C>::sweep(double& energy) {
           P.moved = 0;
           continue;
         }
-        if (fine_w_ > 0) {
-          const Vec3 before = pos_[i];
-          update(i, c, buf, ls);
-          cell_moved_[c] = std::max(cell_moved_[c], norm(pos_[i] - before));
-        } else {
-          update(i, c, buf, ls);
-        }
+        const Vec3 before = pos_[i];
+        update(i, c, buf, ls);
+        if (fine_w_ > 0) cell_moved_[c] = std::max(cell_moved_[c], norm(pos_[i] - before));
+        bin_moved_[c] = std::max(bin_moved_[c], norm(pos_[i] - binned_[i]));
       }
     }
   };
@@ -621,6 +636,7 @@ std::size_t ParticleEngine<C>::retype() {
         if (e1 < (1 - kRetypeMargin) * e0) {
           P.type = other;
           P.spacing = local_spacing(P.attr, P.type);
+          cache(i);
           ++local;
         }
       }
@@ -716,6 +732,7 @@ std::size_t ParticleEngine<C>::grow_types(bool force) {
     if (parts_[i].type == old[i]) continue;
     ++changed;
     parts_[i].spacing = local_spacing(parts_[i].attr, parts_[i].type);
+    cache(i);
   }
   return changed;
 }

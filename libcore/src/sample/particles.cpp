@@ -91,6 +91,7 @@ class SurfaceRun {
     e.spacing = p.spacing;
     e.density = p.density;
     e.alpha_cap = p.alpha_cap;
+    e.sub_bins = engine_constants::kSubBins;
     if (p.quads) set_quad_types(e);
     if (!p.quads) e.first_population_interval = engine_constants::kFirstPopulationInterval;
     return e;

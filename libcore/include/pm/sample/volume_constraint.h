@@ -33,6 +33,7 @@ class VolumeConstraint {
   bool sees(const Point&, const Point&, bool) const { return true; }
   bool weighted(const Point&) const { return false; }
   bool same_cell(const Point&, const Point&) const { return true; }
+  static constexpr bool kPairFree = true;  ///< see SurfaceRules
   double curvedness(const Point&) const { return 0; }
 
   bool inside(const Vec3& x, Probe& pr) const;
