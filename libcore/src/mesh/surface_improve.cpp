@@ -230,6 +230,16 @@ class Improver {
     std::vector<char> touched(nf, 0);
     std::size_t flips = 0;
     auto& V = m_.vertices;
+    // Each face's radius ratio, a filter only: an edge between two faces far
+    // from poor whose flip would not improve the valences is skipped without
+    // computing its own (vertex-order dependent) radius ratios. Faces change
+    // in this pass only by flips, after which they are not visited again.
+    rr_face_.resize(nf);
+    pm::parallel_for(std::size_t(0), nf, [&](std::size_t f) {
+      const Tri& t = m_.faces[f];
+      rr_face_[f] = triangle_radius_ratio(V[t[0]], V[t[1]], V[t[2]]);
+    });
+    const double clearly_fine = p_.poor * (1 + 1e-9);
     for (std::size_t h = 0; h < 3 * nf; ++h) {
       if (opp_[h] < 0) continue;
       const std::size_t o = std::size_t(opp_[h]);
@@ -241,9 +251,6 @@ class Improver {
       const int d = m_.faces[g][(mo + 2) % 3];
       if (c == d || valence_[a] <= 3 || valence_[b] <= 3) continue;
       if (frozen_[a] || frozen_[b] || frozen_[c] || frozen_[d]) continue;
-      const Vec3 &A = V[a], &B = V[b], &C = V[c], &D = V[d];
-      const double rr_old = std::min(triangle_radius_ratio(A, B, C), triangle_radius_ratio(B, A, D));
-      const double rr_new = std::min(triangle_radius_ratio(A, D, C), triangle_radius_ratio(B, C, D));
       // Valence 6 is the goal on a sheet; junction vertices do not count.
       auto dev = [&](int v, int dv) {
         if (fixed_[v]) return 0.0;
@@ -252,17 +259,25 @@ class Improver {
       };
       const double dev_old = dev(a, 0) + dev(b, 0) + dev(c, 0) + dev(d, 0);
       const double dev_new = dev(a, -1) + dev(b, -1) + dev(c, 1) + dev(d, 1);
+      // The cheap tests first: most edges are neither poor nor off valence.
+      const bool fewer_off = dev_new < dev_old;
+      if (!fewer_off && rr_face_[f] >= clearly_fine && rr_face_[g] >= clearly_fine) continue;
+      const Vec3 &A = V[a], &B = V[b], &C = V[c], &D = V[d];
+      const double rr_old = std::min(triangle_radius_ratio(A, B, C), triangle_radius_ratio(B, A, D));
+      const bool poor = rr_old < p_.poor;
+      if (!poor && !fewer_off) continue;
+      const double rr_new = std::min(triangle_radius_ratio(A, D, C), triangle_radius_ratio(B, C, D));
+      const bool better = poor && rr_new > p_.quality_gain * rr_old;
+      // Never below min(old, 0.5): the mesh's worst triangle never gets worse
+      // than that (the same rule as the smoothing's).
+      const bool valence_flip = fewer_off && rr_new >= std::max(p_.keep_quality * rr_old, std::min(rr_old, 0.5));
+      if (!better && !valence_flip) continue;
       // A folded pair (its triangles face apart: a fin the Delaunay surface
       // leaves where three particles line up on a tight bend) is unfolded
       // whatever the valences.
       const Vec3 nf_old = normalized(face_normal(A, B, C)), ng_old = normalized(face_normal(B, A, D));
       const bool folded = dot(nf_old, ng_old) < 0;
-      const bool quality_flip =
-          rr_old < p_.poor && rr_new > p_.quality_gain * rr_old && (folded || dev_new <= dev_old + 2);
-      // Never below min(old, 0.5): the mesh's worst triangle never gets worse
-      // than that (the same rule as the smoothing's).
-      const bool valence_flip =
-          dev_new < dev_old && rr_new >= std::max(p_.keep_quality * rr_old, std::min(rr_old, 0.5));
+      const bool quality_flip = better && (folded || dev_new <= dev_old + 2);
       if (!quality_flip && !valence_flip) continue;
       // Only now the edge table (a cache miss per lookup): most edges fail the tests above.
       if (edges_.count(undirected(c, d))) continue;
@@ -459,6 +474,7 @@ class Improver {
   double cos_fold_;
   double mean_edge_ = 1, tol_ = 0;
   std::vector<int> opp_;
+  std::vector<double> rr_face_;  // flip_pass' filter
   EdgeSet edges_;
   std::vector<std::pair<std::uint64_t, int>> halves_;  // build_opposites' scratch
   std::vector<int> valence_;
