@@ -31,6 +31,7 @@ void report_improve(const pm::SurfaceImproveStats& is, int rounds, const char* v
                             {"flips", is.flips},
                             {"moves", is.moves},
                             {"rejected_moves", is.rejected_moves},
+                            {"unfolded", is.unfolded},
                             {"self_intersections", {is.self_intersections_before, is.self_intersections}},
                             {"frozen_vertices", is.frozen},
                             {"radius_ratio_min", {is.rr_min_before, is.rr_min_after}},

@@ -427,6 +427,7 @@ class Improver {
         const double l0 = norm(n0), l1 = norm(n1);
         fold = !(l0 > 0 && l1 > 0 && dot(n0, n1) >= cos_fold_ * l0 * l1);
       }
+      if (fold) fold = !unfolds(v, prop[v], &list[start[v]], start[v + 1] - start[v], rr_old, rr_new);
       if (fold || rr_new < std::min(rr_old, 0.5)) {
         ++st_.rejected_moves;
         continue;
@@ -434,6 +435,42 @@ class Improver {
       V[v] = prop[v];
       ++st_.moves;
     }
+  }
+
+  // A move that turns a triangle around is a fold, unless that triangle
+  // was the one turned around: it faced against its star (the sum of the
+  // star's normals), and the move sets it, and every other triangle of the
+  // star, within the fold angle of that direction. A particle that landed a
+  // little past its neighbours on a tight bend leaves such an inverted
+  // sliver, which only a move of its vertices repairs. Recomputes the
+  // star's radius ratios (the fold test above stops at the first fold).
+  bool unfolds(std::size_t v, const Vec3& to, const std::uint32_t* star, std::size_t n, double& rr_old,
+               double& rr_new) {
+    auto& V = m_.vertices;
+    Vec3 sum;
+    for (std::size_t q = 0; q < n; ++q) {
+      const Tri& t = m_.faces[star[q]];
+      sum += face_normal(V[t[0]], V[t[1]], V[t[2]]);
+    }
+    const double ls = norm(sum);
+    if (!(ls > 0)) return false;
+    const Vec3 old = V[v];
+    bool inverted_before = false, ok = true;
+    rr_old = rr_new = 1;
+    for (std::size_t q = 0; q < n && ok; ++q) {
+      const Tri& t = m_.faces[star[q]];
+      const Vec3 n0 = face_normal(V[t[0]], V[t[1]], V[t[2]]);
+      rr_old = std::min(rr_old, triangle_radius_ratio(V[t[0]], V[t[1]], V[t[2]]));
+      V[v] = to;
+      const Vec3 n1 = face_normal(V[t[0]], V[t[1]], V[t[2]]);
+      rr_new = std::min(rr_new, triangle_radius_ratio(V[t[0]], V[t[1]], V[t[2]]));
+      V[v] = old;
+      inverted_before = inverted_before || dot(n0, sum) < 0;
+      const double l1 = norm(n1);
+      ok = l1 > 0 && dot(n1, sum) >= cos_fold_ * l1 * ls;
+    }
+    if (ok && inverted_before) ++st_.unfolded;
+    return ok && inverted_before;
   }
 
   void update_normals() {

@@ -44,6 +44,7 @@ struct SurfaceImproveStats {
   std::size_t flips = 0;           ///< edge flips applied
   std::size_t moves = 0;           ///< vertex moves applied (over all steps)
   std::size_t rejected_moves = 0;  ///< moves refused (fold or failed projection)
+  std::size_t unfolded = 0;        ///< moves that turned an inverted triangle back (counted in moves)
   double rr_min_before = 0, rr_mean_before = 0, rr_min_after = 0, rr_mean_after = 0;
   double valence6_before = 0, valence6_after = 0;  ///< share of vertices with 6 neighbours
   /// Intersecting pairs of non-adjacent triangles before and after (CGAL);
