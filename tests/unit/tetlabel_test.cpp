@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -152,8 +153,53 @@ TEST(TetLabel, InterfaceOfTwoMaterialsIsSharedExactly) {
   EXPECT_GT(mesh_topology(all).nonmanifold_edges, 0u);  // the junction curve
 }
 
+// The parallel (CGAL) and TetGen tetrahedralisations of points in general
+// position are the same Delaunay tetrahedra; the parallel one comes in a
+// canonical order with positive orientation, neighbour i sharing the face
+// opposite corner i, and its tetrahedra fill the hull (volumes add up).
+TEST(TetLabel, ParallelDelaunayMatchesTetGen) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1, 1);
+  std::vector<Vec3> pts(3000);
+  for (Vec3& p : pts) p = {u(rng), u(rng), 0.5 * u(rng)};
+  const TetMesh a = delaunay(pts), b = tetgen_delaunay(pts);
+  auto sorted_set = [](const TetMesh& m) {
+    std::vector<std::array<int, 4>> s = m.tets;
+    for (auto& t : s) std::sort(t.begin(), t.end());
+    std::sort(s.begin(), s.end());
+    return s;
+  };
+  EXPECT_EQ(sorted_set(a), sorted_set(b));
+  const auto sa = sorted_set(a);
+  std::vector<std::array<int, 4>> in_order = a.tets;
+  for (auto& t : in_order) std::sort(t.begin(), t.end());
+  EXPECT_EQ(in_order, sa);  // canonical order
+  double vol = 0;
+  for (std::size_t t = 0; t < a.tets.size(); ++t) {
+    const auto& v = a.tets[t];
+    const Vec3 &p = a.points[v[0]], &q = a.points[v[1]], &r = a.points[v[2]], &w = a.points[v[3]];
+    const double v6 = dot(q - p, cross(r - p, w - p));
+    EXPECT_GT(v6, 0);
+    vol += v6 / 6;
+    for (int i = 0; i < 4; ++i) {
+      const int n = a.neighbours[t][std::size_t(i)];
+      if (n < 0) continue;
+      int shared = 0;
+      for (int k = 0; k < 4; ++k)
+        if (k != i) shared += int(std::count(a.tets[std::size_t(n)].begin(), a.tets[std::size_t(n)].end(), v[k]));
+      EXPECT_EQ(shared, 3) << "tet " << t << " neighbour " << i;
+      EXPECT_EQ(std::count(a.tets[std::size_t(n)].begin(), a.tets[std::size_t(n)].end(), v[i]), 0);
+    }
+  }
+  double vol_b = 0;
+  for (const auto& v : b.tets)
+    vol_b += dot(b.points[v[1]] - b.points[v[0]], cross(b.points[v[2]] - b.points[v[0]], b.points[v[3]] - b.points[v[0]])) / 6;
+  EXPECT_NEAR(vol, vol_b, 1e-9 * vol_b);
+}
+
 TEST(TetLabel, BadInput) {
   EXPECT_THROW(delaunay({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}), InputError);
+  EXPECT_THROW(delaunay({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {0, 0, 1}}), InputError);  // a duplicate
   EXPECT_THROW(delaunay({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}, {2, 3, 0}}), InputError);  // coplanar
   EXPECT_THROW(delaunay({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, NAN}}), InputError);
 }

@@ -13,6 +13,7 @@
 
 #include "pm/base/atomic_file.h"
 #include "pm/base/error.h"
+#include "delaunay_cgal.h"
 
 namespace pm {
 namespace {
@@ -66,6 +67,22 @@ std::string tetgen_failure(int code) {
 }
 
 TetMesh delaunay(const std::vector<Vec3>& points) {
+  require_volume_spanning(points);
+  TetMesh tm;
+  std::size_t distinct = 0;
+  if (parallel_delaunay(points, tm, distinct)) {
+    if (distinct != points.size())
+      throw InputError("delaunay: " + std::to_string(points.size() - distinct) + " of " +
+                       std::to_string(points.size()) + " points coincide with others; expected distinct points");
+    if (tm.tets.empty())
+      throw InputError("delaunay: no tetrahedra from " + std::to_string(points.size()) +
+                       " points; expected points that are not all coplanar");
+    return tm;
+  }
+  return tetgen_delaunay(points);
+}
+
+TetMesh tetgen_delaunay(const std::vector<Vec3>& points) {
   require_volume_spanning(points);
   tetgenio in, out;
   in.numberofpoints = int(points.size());

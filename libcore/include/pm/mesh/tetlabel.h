@@ -27,10 +27,16 @@ struct TetMesh {
 /// "self-intersection in input"; "" for a code it does not name.
 std::string tetgen_failure(int code);
 
-/// Delaunay tetrahedralisation of `points` (TetGen, switches "zQn").
+/// Delaunay tetrahedralisation of `points`: CGAL's parallel triangulation
+/// (when CGAL has TBB; tetrahedra in a canonical order, the same for any
+/// thread count), else TetGen's.
 /// \throw InputError when there are fewer than 4 points, non-finite points,
-/// all points are coplanar, or TetGen fails (its error code is named).
+/// coinciding points, all points are coplanar, or TetGen fails (its error
+/// code is named).
 TetMesh delaunay(const std::vector<Vec3>& points);
+
+/// The same with TetGen (switches "zQn"), tetrahedra in TetGen's order.
+TetMesh tetgen_delaunay(const std::vector<Vec3>& points);
 
 /// delaunay() of `points` plus the 8 corners of a box around them (enlarged
 /// by their bounding-box diagonal on every side); tetrahedra with a corner
