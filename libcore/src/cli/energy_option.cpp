@@ -31,7 +31,7 @@ ParticleEnergy energy_named(const std::string& name) {
   throw UsageError("--energy \"" + name + "\": expected cotangent or radial");
 }
 
-CLI::Option* add_step_options(CLI::App& app, StepControl& control, double& factor) {
+CLI::Option* add_step_options(CLI::App& app, StepControl& control, double& factor, const std::string& note) {
   std::vector<std::string> names;
   for (const auto& c : kStepControls) names.emplace_back(c.first);
   CLI::Option* opt = app.add_option_function<std::string>(
@@ -42,8 +42,7 @@ CLI::Option* add_step_options(CLI::App& app, StepControl& control, double& facto
          },
          "Adaptive step (SPEC 3): quadratic = fit a parabola to each trial's energy and step to 1.75x its "
          "minimum, within a factor --step-factor; factor = the dissertation's rule, x --step-factor after a "
-         "first-try acceptance, / after a rejection. quadratic (particles' default; --quads: factor unless "
-         "given) needs about half the updates on the folded brain mask and packs at least as well there")
+         "first-try acceptance, / after a rejection. " + note)
       ->check(CLI::IsMember(names))
       ->default_str(step_control_name(control));
   app.add_option("--step-factor", factor,

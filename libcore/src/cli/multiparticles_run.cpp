@@ -82,7 +82,8 @@ void add_multiparticles_options(CLI::App& app, MultiParticlesRun& cfg) {
   app.add_option("--population-tolerance", cfg.params.population_tolerance,
                  "Converged when at most this fraction of a level's particles wants to split or die")
       ->capture_default_str();
-  pm::add_step_options(app, cfg.params.step_control, cfg.params.step_factor);
+  pm::add_step_options(app, cfg.params.step_control, cfg.params.step_factor,
+                       "factor is the default here: quadratic measured 2-3x slower on label maps");
   app.add_flag("--no-surfaces", cfg.no_surfaces, "Stop after the curves (points and curves only)");
   app.add_flag("--no-junction-repair", cfg.no_repair,
                "Keep surface particles of two interfaces sharing a material that come closer than h/4 (by "

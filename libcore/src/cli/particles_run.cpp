@@ -163,7 +163,10 @@ void add_particles_options(CLI::App& app, ParticlesRun& cfg) {
                  "spacing per iteration, re-checking it every 8 iterations (0 = off)")
       ->check(CLI::Range(0.0, 0.99))
       ->capture_default_str();
-  cfg.step_control_opt = pm::add_step_options(app, cfg.params.step_control, cfg.params.step_factor);
+  cfg.step_control_opt = pm::add_step_options(
+      app, cfg.params.step_control, cfg.params.step_factor,
+      "quadratic is the default here (--quads: factor unless given; --volume and --field always use factor): about half the "
+      "updates on the folded brain mask, packing at least as well");
   app.add_flag("--quads", cfg.params.quads,
                "Quad packing (Chapter 7): two particle types, like pairs √2 farther apart than unlike ones, "
                "settling towards a checkerboard on a square lattice with unlike neighbours --spacing apart; "

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <functional>
 #include <sstream>
 #include <unordered_map>
 #include <unordered_set>
@@ -92,35 +91,11 @@ CreaseCount count_creases(const Mesh& m, const std::vector<int>& faces, double a
 }
 
 namespace {
-void measure_without_self_intersections(const Mesh& m, const MeshQualityParams& p, MeshQuality& q);
-}  // namespace
-
-MeshQuality mesh_quality(const Mesh& m, const MeshQualityParams& p) {
-  m.validate("mesh_quality");
-  MeshQuality q;
-  q.faces = m.faces.size();
-  q.topology = mesh_topology(m);
-  q.vertices = q.topology.vertices;
-  q.rr_histogram.assign(10, 0);
-  q.valence_histogram.assign(16, 0);
-  if (m.faces.empty()) return q;
-  // The self-intersection test (CGAL, the largest part) runs beside the rest.
-  pm::parallel_for(0, 2, [&](int task) {
-    if (task == 0) {
-      if (p.self_intersections) q.self_intersecting_pairs = count_self_intersections(m);
-    } else {
-      measure_without_self_intersections(m, p, q);
-    }
-  });
-  return q;
-}
-
-namespace {
 
 // Distances of points 0..n-1 to the surface, in parallel; NaN where the
 // projection fails, 0 for the points `point` declines (returns false).
-std::vector<double> surface_distances(const ScalarField& f, double iso, std::size_t n,
-                                      const std::function<bool(std::size_t, Vec3&)>& point) {
+template <class Point>
+std::vector<double> surface_distances(const ScalarField& f, double iso, std::size_t n, const Point& point) {
   std::vector<double> d(n, 0.0);
   pm::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
     Vec3 x;
@@ -248,6 +223,26 @@ void measure_without_self_intersections(const Mesh& m, const MeshQualityParams& 
 }
 
 }  // namespace
+
+MeshQuality mesh_quality(const Mesh& m, const MeshQualityParams& p) {
+  m.validate("mesh_quality");
+  MeshQuality q;
+  q.faces = m.faces.size();
+  q.topology = mesh_topology(m);
+  q.vertices = q.topology.vertices;
+  q.rr_histogram.assign(10, 0);
+  q.valence_histogram.assign(16, 0);
+  if (m.faces.empty()) return q;
+  // The self-intersection test (CGAL, the largest part) runs beside the rest.
+  pm::parallel_for(0, 2, [&](int task) {
+    if (task == 0) {
+      if (p.self_intersections) q.self_intersecting_pairs = count_self_intersections(m);
+    } else {
+      measure_without_self_intersections(m, p, q);
+    }
+  });
+  return q;
+}
 
 Json to_json(const MeshQuality& q) {
   Json j;
