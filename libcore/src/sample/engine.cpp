@@ -174,6 +174,9 @@ void SampleBins::build(const std::vector<Vec3>& x, double w, const std::vector<c
   ny_ = std::uint64_t(std::floor(ext.y / w)) + 3;
   nz_ = std::uint64_t(std::floor(ext.z / w)) + 3;
   sub_ = std::max(1, sub);
+  // Keys are (bin, sub-cell) in 64 bits: a grid stretched by a far outlier
+  // (up to 2^20 bins an axis) keeps whole bins.
+  if (double(nx_) * double(ny_) * double(nz_) * double(sub_) * sub_ * sub_ > 0x1p62) sub_ = 1;
   const std::uint64_t S = std::uint64_t(sub_), S3 = S * S * S;
   auto sub_of = [&](double t, std::uint64_t i) {
     const double f = (t - double(i)) * double(S);
@@ -194,7 +197,7 @@ void SampleBins::build(const std::vector<Vec3>& x, double w, const std::vector<c
     order_[i] = std::uint32_t(i);
   }
   // LSD radix sort of (key, index): counting sort per 11-bit digit; stable,
-  // so points keep their previous relative order within a bin.
+  // so points keep their previous relative order within a sub-cell.
   const std::uint64_t total = nx_ * ny_ * nz_ * S3;
   int bits = 1;
   while (bits < 64 && (std::uint64_t(1) << bits) < total) ++bits;
