@@ -119,67 +119,62 @@ TEST(SurfaceImprove, ParticleMeshesMeetTheChapter5Targets) {
   }
 }
 
-// A fin: vertex c of triangle (a, b, c) pushed across the edge a-b towards
-// the opposite vertex d, so that (a, b, c) faces inwards while its
-// neighbours face out (what the Delaunay surface leaves where three
-// particles line up on a tight bend). The folded pair has no direction of
-// its own; flipping a-b to c-d unfolds it, and every face ends outward.
-TEST(SurfaceImprove, AFoldedTriangleIsFlippedOpen) {
-  const auto sphere = make_implicit("sphere");
-  Mesh m = surface_of(fibonacci_sphere(400), *sphere);
-  ASSERT_TRUE(mesh_topology(m).closed_manifold());
-  const auto outward = [&](const std::array<int, 3>& t) {
+// Faces of a mesh of the unit sphere whose normal points inwards.
+std::size_t inward_faces(const Mesh& m) {
+  std::size_t n = 0;
+  for (const auto& t : m.faces) {
     const Vec3 &A = m.vertices[t[0]], &B = m.vertices[t[1]], &C = m.vertices[t[2]];
-    return dot(cross(B - A, C - A), A + B + C) > 0;
-  };
-  for (const auto& t : m.faces) ASSERT_TRUE(outward(t));
-  // Face 0 = (a, b, c); d is the apex of the other face on a-b.
+    n += !(dot(cross(B - A, C - A), A + B + C) > 0);
+  }
+  return n;
+}
+
+// A 400-point sphere mesh with vertex c of face 0 = (a, b, c) pushed across
+// the edge a-b towards d, the apex of the other face on a-b, to the point
+// `share` of the way from the middle of a-b to d: (a, b, c) then faces
+// inwards while its neighbours face out.
+Mesh sphere_with_turned_face(const ScalarField& sphere, double share) {
+  Mesh m = surface_of(fibonacci_sphere(400), sphere);
+  EXPECT_TRUE(mesh_topology(m).closed_manifold());
+  EXPECT_EQ(inward_faces(m), 0u);
   const int a = m.faces[0][0], b = m.faces[0][1], c = m.faces[0][2];
   int d = -1;
   for (std::size_t f = 1; f < m.faces.size(); ++f)
     for (int k = 0; k < 3; ++k)
       if (m.faces[f][k] == b && m.faces[f][(k + 1) % 3] == a) d = m.faces[f][(k + 2) % 3];
-  ASSERT_GE(d, 0);
+  EXPECT_GE(d, 0);
   const Vec3 mid = (m.vertices[a] + m.vertices[b]) * 0.5;
-  m.vertices[c] = normalized(mid + (m.vertices[d] - mid) * 0.2);
-  std::size_t inward = 0;
-  for (const auto& t : m.faces) inward += !outward(t);
-  ASSERT_EQ(inward, 1u);  // only (a, b, c) turned over
+  m.vertices[c] = normalized(mid + (m.vertices[d] - mid) * share);
+  EXPECT_EQ(inward_faces(m), 1u);  // only (a, b, c) turned over
+  return m;
+}
+
+// A fin (c pushed a fifth of the way to d: what the Delaunay surface leaves
+// where three particles line up on a tight bend). The folded pair has no
+// direction of its own; flipping a-b to c-d unfolds it, and every face ends
+// outward.
+TEST(SurfaceImprove, AFoldedTriangleIsFlippedOpen) {
+  const auto sphere = make_implicit("sphere");
+  Mesh m = sphere_with_turned_face(*sphere, 0.2);
   improve_surface(m, *sphere, 0.0);
-  for (const auto& t : m.faces) EXPECT_TRUE(outward(t)) << t[0] << " " << t[1] << " " << t[2];
+  EXPECT_EQ(inward_faces(m), 0u);
   EXPECT_GE(quality(m).rr_min, 0.3);
   EXPECT_TRUE(mesh_topology(m).closed_manifold());
 }
 
-// An inverted sliver: vertex c of triangle (a, b, c) pushed just past the
-// edge a-b (a particle that landed a little beyond its neighbours on a
-// tight bend; the skull's ear bone had one, rr 0.16). With flips switched
-// off only a move of c repairs it, and the fold guard must let the move
-// that turns the inverted triangle back through: every face ends outward.
+// An inverted sliver (c just past a-b: a particle that landed a little
+// beyond its neighbours on a tight bend; the skull's ear bone had one, rr
+// 0.16). With flips switched off only a move of c repairs it, and the fold
+// guard must let the move that turns the inverted triangle back through.
 TEST(SurfaceImprove, AnInvertedSliverIsUnfoldedBySmoothing) {
   const auto sphere = make_implicit("sphere");
-  Mesh m = surface_of(fibonacci_sphere(400), *sphere);
-  const auto outward = [&](const std::array<int, 3>& t) {
-    const Vec3 &A = m.vertices[t[0]], &B = m.vertices[t[1]], &C = m.vertices[t[2]];
-    return dot(cross(B - A, C - A), A + B + C) > 0;
-  };
-  const int a = m.faces[0][0], b = m.faces[0][1], c = m.faces[0][2];
-  int d = -1;
-  for (std::size_t f = 1; f < m.faces.size(); ++f)
-    for (int k = 0; k < 3; ++k)
-      if (m.faces[f][k] == b && m.faces[f][(k + 1) % 3] == a) d = m.faces[f][(k + 2) % 3];
-  ASSERT_GE(d, 0);
-  const Vec3 mid = (m.vertices[a] + m.vertices[b]) * 0.5;
-  m.vertices[c] = normalized(mid + (m.vertices[d] - mid) * 0.05);
-  std::size_t inward = 0;
-  for (const auto& t : m.faces) inward += !outward(t);
-  ASSERT_EQ(inward, 1u);
+  Mesh m = sphere_with_turned_face(*sphere, 0.05);
   SurfaceImproveParams p;
   p.quality_gain = p.keep_quality = 1e9;  // no flip passes its test
   const SurfaceImproveStats st = improve_surface(m, *sphere, 0.0, p);
   EXPECT_EQ(st.flips, 0u);
   EXPECT_GE(st.unfolded, 1u);
-  for (const auto& t : m.faces) EXPECT_TRUE(outward(t)) << t[0] << " " << t[1] << " " << t[2];
+  EXPECT_EQ(inward_faces(m), 0u);
   EXPECT_GE(quality(m).rr_min, 0.3);
 }
 
