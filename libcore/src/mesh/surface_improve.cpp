@@ -416,7 +416,7 @@ class Improver {
       const Vec3 old = V[v];
       double rr_old = 1, rr_new = 1;
       bool fold = false;
-      for (std::uint32_t q = start[v]; q < start[v + 1] && !fold; ++q) {
+      for (std::uint32_t q = start[v]; q < start[v + 1]; ++q) {
         const Tri& t = m_.faces[list[q]];
         const Vec3 n0 = face_normal(V[t[0]], V[t[1]], V[t[2]]);
         rr_old = std::min(rr_old, triangle_radius_ratio(V[t[0]], V[t[1]], V[t[2]]));
@@ -425,15 +425,16 @@ class Improver {
         rr_new = std::min(rr_new, triangle_radius_ratio(V[t[0]], V[t[1]], V[t[2]]));
         V[v] = old;
         const double l0 = norm(n0), l1 = norm(n1);
-        fold = !(l0 > 0 && l1 > 0 && dot(n0, n1) >= cos_fold_ * l0 * l1);
+        fold = fold || !(l0 > 0 && l1 > 0 && dot(n0, n1) >= cos_fold_ * l0 * l1);
       }
-      if (fold) fold = !unfolds(v, prop[v], &list[start[v]], start[v + 1] - start[v], rr_old, rr_new);
-      if (fold || rr_new < std::min(rr_old, 0.5)) {
+      const bool unfolding = fold && unfolds(v, prop[v], &list[start[v]], start[v + 1] - start[v]);
+      if ((fold && !unfolding) || rr_new < std::min(rr_old, 0.5)) {
         ++st_.rejected_moves;
         continue;
       }
       V[v] = prop[v];
       ++st_.moves;
+      st_.unfolded += unfolding;
     }
   }
 
@@ -442,10 +443,8 @@ class Improver {
   // star's normals), and the move sets it, and every other triangle of the
   // star, within the fold angle of that direction. A particle that landed a
   // little past its neighbours on a tight bend leaves such an inverted
-  // sliver, which only a move of its vertices repairs. Recomputes the
-  // star's radius ratios (the fold test above stops at the first fold).
-  bool unfolds(std::size_t v, const Vec3& to, const std::uint32_t* star, std::size_t n, double& rr_old,
-               double& rr_new) {
+  // sliver, which only a move of its vertices repairs.
+  bool unfolds(std::size_t v, const Vec3& to, const std::uint32_t* star, std::size_t n) {
     auto& V = m_.vertices;
     Vec3 sum;
     for (std::size_t q = 0; q < n; ++q) {
@@ -456,20 +455,15 @@ class Improver {
     if (!(ls > 0)) return false;
     const Vec3 old = V[v];
     bool inverted_before = false, ok = true;
-    rr_old = rr_new = 1;
     for (std::size_t q = 0; q < n && ok; ++q) {
       const Tri& t = m_.faces[star[q]];
-      const Vec3 n0 = face_normal(V[t[0]], V[t[1]], V[t[2]]);
-      rr_old = std::min(rr_old, triangle_radius_ratio(V[t[0]], V[t[1]], V[t[2]]));
+      inverted_before = inverted_before || dot(face_normal(V[t[0]], V[t[1]], V[t[2]]), sum) < 0;
       V[v] = to;
       const Vec3 n1 = face_normal(V[t[0]], V[t[1]], V[t[2]]);
-      rr_new = std::min(rr_new, triangle_radius_ratio(V[t[0]], V[t[1]], V[t[2]]));
       V[v] = old;
-      inverted_before = inverted_before || dot(n0, sum) < 0;
       const double l1 = norm(n1);
       ok = l1 > 0 && dot(n1, sum) >= cos_fold_ * l1 * ls;
     }
-    if (ok && inverted_before) ++st_.unfolded;
     return ok && inverted_before;
   }
 
