@@ -67,6 +67,21 @@ PY
   # Deterministic on a grid large enough to be split between threads.
   "$MA" "$T/s.nrrd" "$T/s1.ply" --threads 1 -q
   cmp "$T/s.ply" "$T/s1.ply"
+  # --lfs-only (the pipelines' setting): the bone is thin and stays inside the grid, so
+  # the far medial axis outside it goes, and the sizing field is the same, bit for bit.
+  "$MA" "$T/s.nrrd" "$T/sl.ply" --lfs-only --stats "$T/sl.json" -q
+  python3 - "$T/s.json" "$T/sl.json" <<'PY'
+import json, sys
+full, near = (json.load(open(p)) for p in sys.argv[1:3])
+b = near["parameters"]["max_distance"]
+assert isinstance(b, float) and 0 < b < 60, b        # twice the bone's depth plus two voxel diagonals
+assert near["counts"]["inner"] == full["counts"]["inner"], (near["counts"], full["counts"])
+assert near["counts"]["outer"] < 0.8 * full["counts"]["outer"], (near["counts"], full["counts"])
+assert near["counts"]["nodes_refined"] < full["counts"]["nodes_refined"]
+PY
+  "$BIN/sizingfield" --sdf "$T/s.nrrd" --ma "$T/s.ply" -o "$T/h_all.nrrd" --eps 0.5 -q
+  "$BIN/sizingfield" --sdf "$T/s.nrrd" --ma "$T/sl.ply" -o "$T/h_lfs.nrrd" --eps 0.5 -q
+  cmp "$T/h_all.nrrd" "$T/h_lfs.nrrd"
 fi
 
 # 4. Deterministic: one thread or two give the same points in the same order.

@@ -149,6 +149,58 @@ TEST(MedialAxis, RejectsMasksAndFieldsWithoutSurface) {
   EXPECT_THROW(medial_axis(pos, p), UsageError);
 }
 
+// Two balls of radius R in a box four times wider: the inner MA (their
+// centres) lies R deep, the outer MA (their bisector plane, between them and
+// far beyond them) reaches the box's faces.
+const double kBallR = 4;
+double two_balls(const Vec3& x) {
+  return std::min(norm(x - Vec3(-5.1, 0.2, 0.3)), norm(x - Vec3(5.3, -0.1, 0.2))) - kBallR;
+}
+Volume two_balls_sdf() {
+  const Geometry g = Geometry::with_spacing(1, 1, 1, Vec3(-24, -24, -24));
+  return sample({49, 49, 49}, g, two_balls);
+}
+
+TEST(MedialAxis, LfsBoundIsTwiceTheShallowSideDepth) {
+  // The inside stays within the grid and is R deep (at a node within half a
+  // voxel diagonal of the centre); the outside reaches the faces and does not count.
+  const double diag = std::sqrt(3.0);
+  const double b = medial_axis_lfs_bound(two_balls_sdf());
+  EXPECT_LE(b, 2 * kBallR + 2 * diag + 1e-9);
+  EXPECT_GE(b, 2 * (kBallR - diag / 2) + 2 * diag);
+  // A slab whose inside and outside both reach the faces: no bound.
+  const Volume slab = sample({11, 11, 13}, Geometry::with_spacing(1, 1, 1, Vec3(-5, -5, -6.3)),
+                             [](const Vec3& x) { return std::fabs(x.z) - 3; });
+  EXPECT_TRUE(std::isinf(medial_axis_lfs_bound(slab)));
+}
+
+TEST(MedialAxis, MaxDistanceKeepsExactlyTheNearPoints) {
+  const Volume sdf = two_balls_sdf();
+  const MedialAxisResult all = medial_axis(sdf);
+  MedialAxisParams p;
+  p.max_distance = 9;
+  const MedialAxisResult near = medial_axis(sdf, p);
+  ASSERT_GT(all.outer, near.outer + 100);  // the far bisector plane is gone
+  EXPECT_EQ(near.inner, all.inner);          // the centres are kept
+  // The kept points are the full run's points (bit for bit) of nodes with
+  // |d| <= 9: a point lies within half a voxel diagonal of its node.
+  const double half_diag = std::sqrt(3.0) / 2;
+  std::size_t expected = 0;
+  for (std::size_t i = 0; i < all.points.vertices.size(); ++i)
+    if (distances(all)[i] <= p.max_distance - half_diag) ++expected;
+  std::size_t found = 0;
+  for (std::size_t i = 0; i < near.points.vertices.size(); ++i) {
+    EXPECT_LE(distances(near)[i], p.max_distance + half_diag);
+    const auto it = std::find(all.points.vertices.begin(), all.points.vertices.end(), near.points.vertices[i]);
+    ASSERT_NE(it, all.points.vertices.end()) << "point " << i << " is not in the full run";
+    EXPECT_EQ(distances(near)[i], distances(all)[std::size_t(it - all.points.vertices.begin())]);
+    if (distances(near)[i] <= p.max_distance - half_diag) ++found;
+  }
+  EXPECT_EQ(found, expected);
+  p.max_distance = 0;
+  EXPECT_THROW(medial_axis(sdf, p), UsageError);
+}
+
 TEST(MedialAxis, MarkPoints) {
   const Volume like(VoxelType::f32, {5, 5, 5}, Geometry::with_spacing(2, 2, 2, Vec3(1, 1, 1)));
   const Volume m = mark_points(like, {Vec3(3.1, 4.9, 1.2), Vec3(100, 0, 0)});

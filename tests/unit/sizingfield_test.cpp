@@ -84,6 +84,27 @@ TEST(SizingField, LfsIsExactNearestMedialPoint) {
   EXPECT_GT(checked, 5000u);
 }
 
+// medialaxis --lfs-only: the MA points beyond medial_axis_lfs_bound are
+// nobody's nearest, so the sizing field is the same, bit for bit. Two balls
+// in a wide box: the far bisector plane goes, the centres stay.
+TEST(SizingField, LfsBoundedMedialAxisGivesTheSameField) {
+  const Geometry g = Geometry::with_spacing(1, 1, 1, Vec3(-24, -24, -24));
+  const Volume sdf = sample({49, 49, 49}, g, [](const Vec3& x) {
+    return std::min(norm(x - Vec3(-5.1, 0.2, 0.3)), norm(x - Vec3(5.3, -0.1, 0.2))) - 4;
+  });
+  const std::vector<Vec3> all = medial_axis(sdf).points.vertices;
+  MedialAxisParams mp;
+  mp.max_distance = medial_axis_lfs_bound(sdf);
+  const std::vector<Vec3> near = medial_axis(sdf, mp).points.vertices;
+  ASSERT_LT(near.size() + 100, all.size());  // the bound (about 11.5) drops most of the plane
+  const SizingFieldResult a = sizing_field({{sdf, all}}), b = sizing_field({{sdf, near}});
+  ASSERT_GT(a.known, 1000u);
+  for (std::size_t c = 0; c < sdf.count(); ++c) {
+    ASSERT_EQ(a.lfs.get(c), b.lfs.get(c)) << "node " << c;
+    ASSERT_EQ(a.h.get(c), b.h.get(c)) << "node " << c;
+  }
+}
+
 TEST(SizingField, SlabLfsIsHalfThickness) {
   const double t = 6;
   const Geometry g = Geometry::with_spacing(1, 1, 1, Vec3(-6, -6, -8.4));

@@ -231,7 +231,7 @@ class Stage:
         if self.v["SPACING"]:
             return self.not_needed("uniform SPACING: no sizing field")
         self.run([self.tool("medialaxis"), self.path("tighten", "sdf.nrrd"), self.out("ma.ply"),
-                  "--volume", self.out("ma.nrrd")] + self.flags + self.threads_args()
+                  "--lfs-only", "--volume", self.out("ma.nrrd")] + self.flags + self.threads_args()
                  + ["--stats", self.out("medialaxis.json")])
 
     def surface_sizingfield(self):
@@ -357,7 +357,7 @@ class Stage:
         if self.v["SPACING"]:
             return self.not_needed("uniform SPACING: no sizing field")
         for label, sdf in self.sdfs():
-            self.run([self.tool("medialaxis"), sdf, self.out(f"ma_{label}.ply"), "--side", "both"]
+            self.run([self.tool("medialaxis"), sdf, self.out(f"ma_{label}.ply"), "--side", "both", "--lfs-only"]
                      + self.flags + self.threads_args() + ["--stats", self.out(f"medialaxis_{label}.json")])
 
     def materials_sizingfield(self):

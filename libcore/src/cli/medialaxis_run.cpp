@@ -40,6 +40,11 @@ void add_medialaxis_options(CLI::App& app, MedialAxisRun& cfg) {
   app.add_option("--foot-iterations", cfg.params.foot_iterations, "Tangent-plane refinements of each foot point")
       ->capture_default_str();
 
+  app.add_flag("--lfs-only", cfg.lfs_only,
+               "Keep only the medial-axis points that can be the nearest one of some surface point, "
+               "for sizingfield: those within the depth of the shallower side (the one that stays "
+               "inside the grid) plus two voxel diagonals, world units. The local feature size is "
+               "the same; the far medial axis (deep in a large background) is skipped");
   pm::add_frame_option(app, cfg.frame);
 }
 
@@ -83,6 +88,14 @@ void run_medialaxis(MedialAxisRun& cfg, const CommonFlags& flags) {
     }
     st["parameters"]["iso"] = iso;
     st["parameters"]["inside"] = inside;
+  }
+  if (cfg.lfs_only) {
+    p.max_distance = pm::medial_axis_lfs_bound(sdf);
+    st["parameters"]["max_distance"] = std::isfinite(p.max_distance) ? pm::Json(p.max_distance) : pm::Json("all");
+    pm::info(std::isfinite(p.max_distance)
+                 ? "--lfs-only: medial-axis points within " + pm::format_number(p.max_distance) +
+                       " (world units) of the surface"
+                 : "--lfs-only: both sides reach the grid's faces; every medial-axis point is kept");
   }
   pm::MedialAxisResult r;
   {

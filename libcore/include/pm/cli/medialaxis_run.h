@@ -19,6 +19,7 @@ struct MedialAxisRun {
   std::string side = "both";
   std::string inside = "below";
   std::string sdf_out;
+  bool lfs_only = false;
   double iso = std::nan("");
   pm::MedialAxisParams params;
   pm::WorldFrame frame = pm::WorldFrame::lps;

@@ -16,6 +16,7 @@
 // the segment q q' crosses the MA, where the tangent planes at p and p' are
 // equidistant (first order); that point and its distance to the surface are
 // kept. Both the inner MA (d < 0) and the outer MA (d > 0) are found.
+#include <cmath>
 #include <cstddef>
 #include <string>
 #include <vector>
@@ -30,6 +31,11 @@ struct MedialAxisParams {
   int foot_iterations = 3; ///< most Newton refinements of each foot point (>= 0)
   bool inside = true;      ///< find the inner MA (where d < 0)
   bool outside = true;     ///< find the outer MA (where d > 0)
+  /// Only MA points of nodes with |d| <= max_distance (world units) are
+  /// tested; infinity = all. The points kept are exactly those of the full
+  /// run whose node lies within that distance (foot points are found on a
+  /// wider shell so the kept nodes see the same neighbours).
+  double max_distance = HUGE_VAL;
 };
 
 struct MedialAxisResult {
@@ -54,6 +60,18 @@ void require_distance_volume(const Volume& v, const std::string& what);
 /// \throw UsageError for cos_alpha outside (-1, 1) or foot_iterations < 0;
 /// InputError as require_distance_volume.
 MedialAxisResult medial_axis(const Volume& sdf, const MedialAxisParams& p = {});
+
+/// The largest distance to the surface at which an MA point can still be the
+/// nearest MA point of some surface point, so that the local feature size
+/// (distance from a surface point to the nearest MA point) does not depend
+/// on MA points farther out: every surface point p has a maximal ball on each
+/// side whose centre is an MA point, so LFS(p) <= the ball's radius <= the
+/// deepest |d| of that side, while an MA point m is at least d(m) from every
+/// surface point. Only a side that does not reach the grid's faces counts
+/// (its balls lie within the grid); the bound is the smaller of the two
+/// sides' depths (twice that, see kLfsBoundDepths) plus two voxel diagonals for the sampling of the MA, and
+/// infinity when both sides reach the faces. World units.
+double medial_axis_lfs_bound(const Volume& sdf);
 
 /// uint8 volume on the grid of `like` with 1 at the node nearest to each
 /// point inside the grid, 0 elsewhere.
