@@ -136,29 +136,53 @@ double ParticleEngine<C>::energy_at(const Vec3& x, const Vec3& n, double a, std:
   // (rounding is monotone), so each side's part is divided out once.
   const bool sizing = p_.sizing_mode;
   const double part = sizing ? beta_ / (scale_ * a) : 0.0;
-  for (const Cand& c : cs) {
-    const Vec3 d = x - c.x;
-    const double d2 = norm2(d);
-    double al;
-    if (sizing) {
-      al = std::max(std::max(part, c.a), alpha_floor_);
-      if (typed_) al /= p_.type_scale[t][c.type];
-    } else {
-      al = alpha(a, c.a, t, c.type);
+  // Two passes per chunk of candidates: the first finds, without a branch,
+  // those within interaction range (about half of them, in no predictable
+  // order: a branch there mispredicts half the time), the second sums their
+  // energies in the candidates' order, so the sums are the same bit for bit.
+  constexpr std::size_t kChunk = 32;
+  std::uint8_t sel[kChunk];
+  double sel_al[kChunk], sel_d2[kChunk];
+  for (std::size_t base = 0; base < cs.size(); base += kChunk) {
+    const std::size_t m = std::min(kChunk, cs.size() - base);
+    const Cand* cb = cs.data() + base;
+    std::size_t k = 0;
+    for (std::size_t j = 0; j < m; ++j) {
+      const Cand& c = cb[j];
+      const double d2 = norm2(x - c.x);
+      double al;
+      if (sizing) {
+        al = std::max(std::max(part, c.a), alpha_floor_);
+        if (typed_) al /= p_.type_scale[t][c.type];
+      } else {
+        al = alpha(a, c.a, t, c.type);
+      }
+      sel[k] = std::uint8_t(j);
+      sel_al[k] = al;
+      sel_d2[k] = d2;
+      k += al * al * d2 < 1.0;
     }
-    if (al * al * d2 >= 1.0) continue;
-    ++count;
-    const double w = c.weighted ? normal_weight(dot(n, c.n)) : 1.0;
-    if (w == 0) continue;
-    const double dist = std::sqrt(d2);
-    double de = 0;
-    e += w * particle_pair_energy(p_.energy, al * dist + kEpsR, de);
-    if (v && dist > 0) force -= d * (w * de * al / dist);
+    count += int(k);
+    for (std::size_t s = 0; s < k; ++s) {
+      const Cand& c = cb[sel[s]];
+      const double w = c.weighted ? normal_weight(dot(n, c.n)) : 1.0;
+      if (w == 0) continue;
+      const double al = sel_al[s], dist = std::sqrt(sel_d2[s]);
+      double de = 0;
+      e += w * particle_pair_energy(p_.energy, al * dist + kEpsR, de);
+      if (v && dist > 0) force -= (x - c.x) * (w * de * al / dist);
+    }
   }
   if (v) *v = force;
   if (nbrs) *nbrs = count;
   return e;
 }
+
+// Gathers select their candidates a chunk at a time without a branch (about
+// half of those scanned are out of reach, in no predictable order), then
+// copy them in scan order: the same candidates in the same order as a test
+// per candidate.
+constexpr std::uint32_t kGatherChunk = 32;
 
 // Candidates within `reach` of x, excluding self and particles self does
 // not see: from the fine grid when it is in use and its search stays inside
@@ -176,9 +200,19 @@ void ParticleEngine<C>::gather(const Vec3& x, double reach, std::size_t self, st
     if (need + fine_.width() < bins_.width()) {  // the rebuilt grid may be wider than fine_w_
       const Particle& P0 = parts_[self];
       Cand tmp;
-      fine_.visit_ball(x, need, [&](std::uint32_t q) {
-        if (q == self || norm2(pos_[q] - x) >= r2) return;
-        if (kCached || sees(P0, parts_[q])) out.push_back(neighbour(P0, q, tmp));
+      fine_.visit_ball_ranges(x, need, [&](const std::uint32_t* b, const std::uint32_t* e) {
+        for (; b < e; b += kGatherChunk) {
+          const std::uint32_t* end = std::min(b + kGatherChunk, e);
+          std::uint32_t sel[kGatherChunk];
+          std::uint32_t n = 0;
+          for (const std::uint32_t* it = b; it < end; ++it) {
+            const std::uint32_t q = *it;
+            sel[n] = q;
+            n += (q != self) & (norm2(pos_[q] - x) < r2);
+          }
+          for (std::uint32_t s = 0; s < n; ++s)
+            if (kCached || sees(P0, parts_[sel[s]])) out.push_back(neighbour(P0, sel[s], tmp));
+        }
       });
       return;
     }
@@ -198,10 +232,19 @@ void ParticleEngine<C>::gather(const Vec3& x, double reach, std::size_t self, st
     if (nb[k] < 0) continue;
     if (!((m[0] >> (k % 3)) & 1) || !((m[1] >> ((k / 3) % 3)) & 1) || !((m[2] >> (k / 9)) & 1)) continue;
     bins_.visit_box(std::size_t(nb[k]), x, pad, [&](std::uint32_t b, std::uint32_t e) {
-      for (std::uint32_t q = b; q < e; ++q) {
-        if (norm2(pos_[q] - x) >= r2 || q == self) continue;
-        if (!kCached && !sees(P, parts_[q])) continue;
-        out.push_back(neighbour(P, q, tmp));
+      // As in energy_at: select without a branch, then copy in order.
+      for (std::uint32_t q0 = b; q0 < e; q0 += kGatherChunk) {
+        const std::uint32_t m = std::min(kGatherChunk, e - q0);
+        std::uint32_t sel[kGatherChunk];
+        std::uint32_t n = 0;
+        for (std::uint32_t q = q0; q < q0 + m; ++q) {
+          sel[n] = q;
+          n += (norm2(pos_[q] - x) < r2) & (q != self);
+        }
+        for (std::uint32_t s = 0; s < n; ++s) {
+          if (!kCached && !sees(P, parts_[sel[s]])) continue;
+          out.push_back(neighbour(P, sel[s], tmp));
+        }
       }
     });
   }
@@ -213,10 +256,16 @@ void ParticleEngine<C>::gather_list(const Vec3& x, double reach, std::size_t sel
   const double r2 = reach * reach;
   const Particle& P = parts_[self];
   Cand tmp;
-  for (std::uint32_t k = nbr_start_[self]; k < nbr_start_[self + 1]; ++k) {
-    const std::uint32_t q = nbr_[k];
-    if (norm2(pos_[q] - x) >= r2) continue;
-    out.push_back(neighbour(P, q, tmp));
+  const std::uint32_t e = nbr_start_[self + 1];
+  for (std::uint32_t k0 = nbr_start_[self]; k0 < e; k0 += kGatherChunk) {
+    const std::uint32_t m = std::min(kGatherChunk, e - k0);
+    std::uint32_t sel[kGatherChunk];
+    std::uint32_t n = 0;
+    for (std::uint32_t k = k0; k < k0 + m; ++k) {
+      sel[n] = nbr_[k];
+      n += norm2(pos_[nbr_[k]] - x) < r2;
+    }
+    for (std::uint32_t s = 0; s < n; ++s) out.push_back(neighbour(P, sel[s], tmp));
   }
 }
 

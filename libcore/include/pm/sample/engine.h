@@ -489,11 +489,12 @@ class DenseBins {
   /// Cells of width >= w, widened until there are at most max_cells.
   void build(const std::vector<Vec3>& x, double w, std::size_t max_cells);
   double width() const { return w_; }
-  /// Calls f(i) for every point i binned in a cell that meets the ball of
-  /// radius r around x: a superset of the points within r, in a fixed order
-  /// (rows by z then y, cells by x, points by index).
+  /// Calls f(begin, end) over runs of point indices: every point binned in
+  /// a cell that meets the ball of radius r around x (a superset of the
+  /// points within r), in a fixed order (rows by z then y, cells by x, points
+  /// by index), one run per row the ball crosses.
   template <class F>
-  void visit_ball(const Vec3& x, double r, F&& f) const {
+  void visit_ball_ranges(const Vec3& x, double r, F&& f) const {
     if (start_.empty()) return;
     const double r2 = r * r;
     const long iz0 = clamp_cell(x.z - r, 2), iz1 = clamp_cell(x.z + r, 2);
@@ -507,8 +508,8 @@ class DenseBins {
         const double hw = std::sqrt(ry);
         const long ix0 = clamp_cell(x.x - hw, 0), ix1 = clamp_cell(x.x + hw, 0);
         const std::size_t row = std::size_t(n_[0]) * (std::size_t(iy) + std::size_t(n_[1]) * std::size_t(iz));
-        for (std::uint32_t k = start_[row + std::size_t(ix0)], e = start_[row + std::size_t(ix1) + 1]; k < e; ++k)
-          f(order_[k]);
+        const std::uint32_t b = start_[row + std::size_t(ix0)], e = start_[row + std::size_t(ix1) + 1];
+        if (b < e) f(order_.data() + b, order_.data() + e);
       }
     }
   }
