@@ -199,7 +199,6 @@ void ParticleEngine<C>::gather(const Vec3& x, double reach, std::size_t self, st
     const double need = reach + cell_moved_[cell];
     if (need + fine_.width() < bins_.width()) {  // the rebuilt grid may be wider than fine_w_
       const Particle& P0 = parts_[self];
-      Cand tmp;
       fine_.visit_ball_ranges(x, need, [&](const std::uint32_t* b, const std::uint32_t* e) {
         for (; b < e; b += kGatherChunk) {
           const std::uint32_t* end = std::min(b + kGatherChunk, e);
@@ -211,7 +210,7 @@ void ParticleEngine<C>::gather(const Vec3& x, double reach, std::size_t self, st
             n += (q != self) & (norm2(pos_[q] - x) < r2);
           }
           for (std::uint32_t s = 0; s < n; ++s)
-            if (kCached || sees(P0, parts_[sel[s]])) out.push_back(neighbour(P0, sel[s], tmp));
+            if (kCached || sees(P0, parts_[sel[s]])) push_neighbour(out, P0, sel[s]);
         }
       });
       return;
@@ -227,7 +226,6 @@ void ParticleEngine<C>::gather(const Vec3& x, double reach, std::size_t self, st
   int m[3];
   bins_.axis_masks(cell, x, pad, m);
   const Particle& P = parts_[self];
-  Cand tmp;
   for (int k = 0; k < 27; ++k) {
     if (nb[k] < 0) continue;
     if (!((m[0] >> (k % 3)) & 1) || !((m[1] >> ((k / 3) % 3)) & 1) || !((m[2] >> (k / 9)) & 1)) continue;
@@ -243,7 +241,7 @@ void ParticleEngine<C>::gather(const Vec3& x, double reach, std::size_t self, st
         }
         for (std::uint32_t s = 0; s < n; ++s) {
           if (!kCached && !sees(P, parts_[sel[s]])) continue;
-          out.push_back(neighbour(P, sel[s], tmp));
+          push_neighbour(out, P, sel[s]);
         }
       }
     });
@@ -255,7 +253,6 @@ void ParticleEngine<C>::gather_list(const Vec3& x, double reach, std::size_t sel
   out.clear();
   const double r2 = reach * reach;
   const Particle& P = parts_[self];
-  Cand tmp;
   const std::uint32_t e = nbr_start_[self + 1];
   for (std::uint32_t k0 = nbr_start_[self]; k0 < e; k0 += kGatherChunk) {
     const std::uint32_t m = std::min(kGatherChunk, e - k0);
@@ -265,7 +262,7 @@ void ParticleEngine<C>::gather_list(const Vec3& x, double reach, std::size_t sel
       sel[n] = nbr_[k];
       n += norm2(pos_[nbr_[k]] - x) < r2;
     }
-    for (std::uint32_t s = 0; s < n; ++s) out.push_back(neighbour(P, sel[s], tmp));
+    for (std::uint32_t s = 0; s < n; ++s) push_neighbour(out, P, sel[s]);
   }
 }
 

@@ -751,14 +751,20 @@ class ParticleEngine {
   void cache(std::size_t q) {
     if constexpr (kCached) cands_[q] = cand_of(parts_[q], parts_[q]);
   }
-  const Cand& neighbour(const Particle& i, std::size_t q, Cand& tmp) const {
+  // Appends q's Cand as seen from i, built in place (pair-free constraints:
+  // copied from the cache).
+  void push_neighbour(std::vector<Cand>& out, const Particle& i, std::size_t q) const {
     if constexpr (kCached) {
       (void)i;
-      (void)tmp;
-      return cands_[q];
+      out.push_back(cands_[q]);
     } else {
-      tmp = cand_of(i, parts_[q]);
-      return tmp;
+      const Particle& o = parts_[q];
+      Cand& c = out.emplace_back();
+      c.x = o.p.x;
+      c.n = o.p.n;
+      c.a = p_.sizing_mode ? beta_ / (scale_ * o.attr) : o.attr;
+      c.type = o.type;
+      c.weighted = c_.weighted(i.p) && c_.same_cell(i.p, o.p);
     }
   }
   bool sees(const Particle& i, const Particle& o) const { return c_.sees(i.p, o.p, o.fixed); }
