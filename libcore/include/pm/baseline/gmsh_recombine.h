@@ -1,8 +1,8 @@
 #pragma once
 // The quad baseline of issue #20: Gmsh's recombination of a triangle surface
-// into quads (Blossom perfect matching by default), run through the Gmsh C++
-// API (Debian's libgmsh-dev) on our own triangles, so that a quad packing and
-// Gmsh's quads share their vertices. World units.
+// into quads (Blossom perfect matching by default), run through Gmsh's C API
+// (Debian's libgmsh-dev, loaded on first use) on our own triangles, so that a
+// quad packing and Gmsh's quads share their vertices. World units.
 #include <cstddef>
 #include <string>
 
