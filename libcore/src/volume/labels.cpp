@@ -95,13 +95,27 @@ std::map<std::int64_t, std::size_t> label_counts(const Volume& v, std::size_t ma
   require_labels(v, "label_counts");
   std::unordered_map<std::int64_t, std::size_t> counts;
   const std::size_t n = v.count();
-  for (std::size_t i = 0; i < n; ++i) {
-    ++counts[std::int64_t(v.get(i))];
-    if (counts.size() > max_labels) {
+  // Label maps come in runs along x: count a run at once.
+  std::int64_t last = 0;
+  std::size_t run = 0;
+  auto flush = [&] {
+    if (run == 0) return;
+    counts[last] += run;
+    if (counts.size() > max_labels)
       throw InputError("label_counts: more than " + std::to_string(max_labels) +
                        " distinct values; expected a label map");
+  };
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::int64_t x = std::int64_t(v.get(i));
+    if (run > 0 && x == last) {
+      ++run;
+      continue;
     }
+    flush();
+    last = x;
+    run = 1;
   }
+  flush();
   return {counts.begin(), counts.end()};
 }
 
@@ -208,9 +222,16 @@ Volume merge_labels(const Volume& v, const std::vector<MergeRule>& rules) {
   if (!fits) t = VoxelType::i32;
   Volume out = t == v.type() ? v : v.converted(t);
   const std::size_t n = v.count();
+  std::int64_t last = 0;
+  const std::int64_t* to = nullptr;  // last's new label, or nullptr: unchanged
   for (std::size_t i = 0; i < n; ++i) {
-    const auto it = map.find(std::int64_t(v.get(i)));
-    if (it != map.end()) out.set(i, double(it->second));
+    const std::int64_t x = std::int64_t(v.get(i));
+    if (i == 0 || x != last) {  // one lookup per run of equal labels
+      const auto it = map.find(x);
+      to = it != map.end() ? &it->second : nullptr;
+      last = x;
+    }
+    if (to) out.set(i, double(*to));
   }
   return out;
 }
@@ -231,9 +252,11 @@ Volume drop_small_labels(const Volume& v, std::size_t min_voxels, std::vector<st
   std::vector<std::int64_t> lab(n);
   std::vector<std::uint8_t> open(n);
   std::vector<std::size_t> todo;
+  bool dropped_last = false;
   for (std::size_t c = 0; c < n; ++c) {
     lab[c] = std::int64_t(v.get(c));
-    if (drop.count(lab[c])) {
+    if (c == 0 || lab[c] != lab[c - 1]) dropped_last = drop.count(lab[c]) > 0;  // one lookup per run
+    if (dropped_last) {
       open[c] = 1;
       todo.push_back(c);
     }
