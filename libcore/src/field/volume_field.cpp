@@ -1,6 +1,7 @@
 #include "pm/field/volume_field.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -1228,21 +1229,25 @@ std::shared_ptr<const ValueBounds> VolumeField::value_bounds(int block) const {
   const double count = double(m) * m * m;
   pm::parallel_for(tbb::blocked_range<int>(0, r->nb[2]), [&](const tbb::blocked_range<int>& zr) {
     std::vector<double> y(std::size_t(m) * m * m);
+    std::array<std::vector<std::ptrdiff_t>, 3> off;
+    for (auto& o : off) o.resize(std::size_t(m));
     for (int bz = zr.begin(); bz < zr.end(); ++bz)
       for (int by = 0; by < r->nb[1]; ++by)
         for (int bx = 0; bx < r->nb[0]; ++bx) {
           const int b0[3] = {bx * block - 1, by * block - 1, bz * block - 1};
+          // Each axis' sample offsets, clamped like the field's offset tables
+          // (which replicate the border), once per block.
+          for (int a = 0; a < 3; ++a)
+            for (int q = 0; q < m; ++q) {
+              const Index i = std::min<Index>(std::max<Index>(b0[a] + q, 0), Index(dims_[a]) - 1);
+              off[std::size_t(a)][std::size_t(q)] = offset_[a][std::size_t(i + kPad)];
+            }
           double sum = 0, sx = 0, sy = 0, sz = 0, ymax = 0;
           std::size_t k = 0;
           for (int qz = 0; qz < m; ++qz)
             for (int qy = 0; qy < m; ++qy)
               for (int qx = 0; qx < m; ++qx, ++k) {
-                // Clamped like the field's offset tables (which replicate the border).
-                const Index ix = std::min<Index>(std::max<Index>(b0[0] + qx, 0), Index(dims_[0]) - 1);
-                const Index iy = std::min<Index>(std::max<Index>(b0[1] + qy, 0), Index(dims_[1]) - 1);
-                const Index iz = std::min<Index>(std::max<Index>(b0[2] + qz, 0), Index(dims_[2]) - 1);
-                const double v = data[offset_[0][std::size_t(ix + kPad)] + offset_[1][std::size_t(iy + kPad)] +
-                                      offset_[2][std::size_t(iz + kPad)]];
+                const double v = data[off[0][std::size_t(qx)] + off[1][std::size_t(qy)] + off[2][std::size_t(qz)]];
                 y[k] = v;
                 sum += v;
                 sx += (qx - c) * v;
