@@ -31,21 +31,19 @@ constexpr int kSurface = 2;
 #define PM_STR(x) PM_STR2(x)
 #define PM_STR2(x) #x
 
-// The C API functions used here, resolved once.
+// The C API functions used here (member, Gmsh's symbol), resolved once.
+#define PM_GMSH_FUNCTIONS(X)                                                                          \
+  X(initialize, gmshInitialize) X(finalize, gmshFinalize) X(set_number, gmshOptionSetNumber)         \
+  X(get_string, gmshOptionGetString) X(model_add, gmshModelAdd)                                      \
+  X(add_discrete_entity, gmshModelAddDiscreteEntity) X(add_nodes, gmshModelMeshAddNodes)             \
+  X(add_elements, gmshModelMeshAddElementsByType) X(recombine, gmshModelMeshRecombine)               \
+  X(get_nodes, gmshModelMeshGetNodes) X(get_elements, gmshModelMeshGetElementsByType)                \
+  X(last_error, gmshLoggerGetLastError) X(free, gmshFree)
+
 struct GmshApi {
-  decltype(&gmshInitialize) initialize = nullptr;
-  decltype(&gmshFinalize) finalize = nullptr;
-  decltype(&gmshOptionSetNumber) set_number = nullptr;
-  decltype(&gmshOptionGetString) get_string = nullptr;
-  decltype(&gmshModelAdd) model_add = nullptr;
-  decltype(&gmshModelAddDiscreteEntity) add_discrete_entity = nullptr;
-  decltype(&gmshModelMeshAddNodes) add_nodes = nullptr;
-  decltype(&gmshModelMeshAddElementsByType) add_elements = nullptr;
-  decltype(&gmshModelMeshRecombine) recombine = nullptr;
-  decltype(&gmshModelMeshGetNodes) get_nodes = nullptr;
-  decltype(&gmshModelMeshGetElementsByType) get_elements = nullptr;
-  decltype(&gmshLoggerGetLastError) last_error = nullptr;
-  decltype(&gmshFree) free = nullptr;
+#define PM_GMSH_MEMBER(m, f) decltype(&f) m = nullptr;
+  PM_GMSH_FUNCTIONS(PM_GMSH_MEMBER)
+#undef PM_GMSH_MEMBER
   std::string error;  // why loading failed (empty: loaded)
 };
 
@@ -64,19 +62,9 @@ const GmshApi& gmsh_api() {
       fn = reinterpret_cast<std::remove_reference_t<decltype(fn)>>(dlsym(h, name));
       if (!fn && api.error.empty()) api.error = std::string("Gmsh (" PM_GMSH_SONAME ") lacks ") + name;
     };
-    get(api.initialize, "gmshInitialize");
-    get(api.finalize, "gmshFinalize");
-    get(api.set_number, "gmshOptionSetNumber");
-    get(api.get_string, "gmshOptionGetString");
-    get(api.model_add, "gmshModelAdd");
-    get(api.add_discrete_entity, "gmshModelAddDiscreteEntity");
-    get(api.add_nodes, "gmshModelMeshAddNodes");
-    get(api.add_elements, "gmshModelMeshAddElementsByType");
-    get(api.recombine, "gmshModelMeshRecombine");
-    get(api.get_nodes, "gmshModelMeshGetNodes");
-    get(api.get_elements, "gmshModelMeshGetElementsByType");
-    get(api.last_error, "gmshLoggerGetLastError");
-    get(api.free, "gmshFree");
+#define PM_GMSH_RESOLVE(m, f) get(api.m, #f);
+    PM_GMSH_FUNCTIONS(PM_GMSH_RESOLVE)
+#undef PM_GMSH_RESOLVE
   });
   if (!api.error.empty()) throw IoError("gmsh_recombine: " + api.error);
   return api;
