@@ -183,6 +183,20 @@ def side_by_side(case, name, target, inp, make_vars, stages, peer, vertex_target
         total = sum(secs.values())
         for stage, t in sorted(secs.items(), key=lambda kv: -kv[1]):
             row(case, f"{name}: stage {stage}", round(t, 2), "s", note=f"{100 * t / max(total, 1e-9):.0f}% of the stages")
+        # Issue #16's engine targets, from the particle stage's own statistics.
+        for tool, per_s in (("particles", 4e6), ("multiparticles", 1.5e6)):
+            path = os.path.join(out, "work", f"{tool}.json")
+            eng = json.load(open(path)).get("engine", {}) if os.path.exists(path) else {}
+            if not eng.get("updates"):
+                continue
+            parts = json.load(open(path))["counts"]["particles"]
+            row(case, f"{name}: {tool} updates per second (#16)", round(eng["updates_per_second"] / 1e6, 2), "M/s",
+                f">= {per_s / 1e6:g}", eng["updates_per_second"] >= per_s,
+                f"{eng['updates']} updates, {eng['updates'] / max(parts, 1):.1f} per particle (#16: <= 50), "
+                f"{eng['trials'] / eng['updates']:.2f} trials per update")
+            if tool == "particles" and vertex_target == 500000:
+                row(case, f"{name}: particle stage at about 500k (#16)", round(secs["particles"], 1), "s", "<= 15",
+                    secs["particles"] <= 15)
         q = json.load(open(os.path.join(out, "quality.json")))
         n = q["overall"]["vertices"] if "overall" in q else q["vertices"]
         ok_n = vertex_target is None or (0.9 * vertex_target <= n <= 1.1 * vertex_target)
