@@ -187,15 +187,17 @@ void SampleBins::build(const std::vector<Vec3>& x, double w, const std::vector<c
   keys_tmp_.resize(n);
   order_.resize(n);
   order_tmp_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const Vec3 t = (x[i] - lo_) / w;
-    const std::uint64_t ix = std::min<std::uint64_t>(std::uint64_t(std::max(0.0, t.x)), nx_ - 2);
-    const std::uint64_t iy = std::min<std::uint64_t>(std::uint64_t(std::max(0.0, t.y)), ny_ - 2);
-    const std::uint64_t iz = std::min<std::uint64_t>(std::uint64_t(std::max(0.0, t.z)), nz_ - 2);
-    const std::uint64_t sc = sub_of(t.x, ix) + S * (sub_of(t.y, iy) + S * sub_of(t.z, iz));
-    keys_[i] = (ix + nx_ * (iy + ny_ * iz)) * S3 + sc;
-    order_[i] = std::uint32_t(i);
-  }
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t i = r.begin(); i != r.end(); ++i) {
+      const Vec3 t = (x[i] - lo_) / w;
+      const std::uint64_t ix = std::min<std::uint64_t>(std::uint64_t(std::max(0.0, t.x)), nx_ - 2);
+      const std::uint64_t iy = std::min<std::uint64_t>(std::uint64_t(std::max(0.0, t.y)), ny_ - 2);
+      const std::uint64_t iz = std::min<std::uint64_t>(std::uint64_t(std::max(0.0, t.z)), nz_ - 2);
+      const std::uint64_t sc = sub_of(t.x, ix) + S * (sub_of(t.y, iy) + S * sub_of(t.z, iz));
+      keys_[i] = (ix + nx_ * (iy + ny_ * iz)) * S3 + sc;
+      order_[i] = std::uint32_t(i);
+    }
+  });
   // LSD radix sort of (key, index): counting sort per 11-bit digit; stable,
   // so points keep their previous relative order within a sub-cell.
   const std::uint64_t total = nx_ * ny_ * nz_ * S3;

@@ -371,25 +371,44 @@ void ParticleEngine<C>::update(std::size_t i, std::size_t cell, std::vector<Cand
 
 // --- bins and lists ---------------------------------------------------------
 
+constexpr std::size_t kRebinChunk = 4096;
+
 template <class C>
 void ParticleEngine<C>::rebin(bool for_lists) {
   using namespace engine_constants;
   const std::size_t n = parts_.size();
+  // The elementwise passes over the particles run in parallel (a rebin comes
+  // before every sweep while particles move fast, and was a serial 8% of the
+  // brain's particle stage); maxima do not depend on the order.
+  const std::size_t chunks = (n + kRebinChunk - 1) / kRebinChunk;
+  std::vector<double> cmax(2 * chunks, 0.0);
+  auto chunked = [&](auto&& f) {
+    pm::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
+      for (std::size_t i = c * kRebinChunk, e = std::min(n, i + kRebinChunk); i < e; ++i) f(c, i);
+    });
+  };
+  chunked([&](std::size_t c, std::size_t i) {
+    cmax[2 * c] = std::max(cmax[2 * c], parts_[i].spacing);
+    if (p_.sizing_mode) cmax[2 * c + 1] = std::max(cmax[2 * c + 1], scale_ * parts_[i].attr);
+  });
   double dmax = 0, hmax = 0;
-  for (const Particle& q : parts_) {
-    dmax = std::max(dmax, q.spacing);
-    if (p_.sizing_mode) hmax = std::max(hmax, scale_ * q.attr);
+  for (std::size_t c = 0; c < chunks; ++c) {
+    dmax = std::max(dmax, cmax[2 * c]);
+    hmax = std::max(hmax, cmax[2 * c + 1]);
   }
   if (!p_.sizing_mode) {
     r_max_ = s_ / beta_;  // α_ij >= β/s
   } else {
     r_max_ = kSizingSlack * hmax / beta_;
     alpha_floor_ = 1.0 / r_max_;
-    dmax = 0;
-    for (Particle& q : parts_) {
+    std::fill(cmax.begin(), cmax.end(), 0.0);
+    chunked([&](std::size_t c, std::size_t i) {
+      Particle& q = parts_[i];
       q.spacing = local_spacing(q.attr, q.type);
-      dmax = std::max(dmax, q.spacing);
-    }
+      cmax[2 * c] = std::max(cmax[2 * c], q.spacing);
+    });
+    dmax = 0;
+    for (std::size_t c = 0; c < chunks; ++c) dmax = std::max(dmax, cmax[2 * c]);
   }
   d_max_ = dmax;
   lists_valid_ = false;
@@ -397,23 +416,23 @@ void ParticleEngine<C>::rebin(bool for_lists) {
   const double w = r_max_ * type_max_ + (for_lists ? kSpacingSlack + 2 * kListSkin : 2.0) * d_max_;
   pos_.resize(n);
   active_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
+  chunked([&](std::size_t, std::size_t i) {
     pos_[i] = parts_[i].p.x;
     active_[i] = parts_[i].fixed ? 0 : 1;
-  }
+  });
   // Engines with the fine grid gather from it: their bins need no sub-cells.
   bins_.build(pos_, w, active_, p_.fine_bins ? 1 : p_.sub_bins);
   const std::vector<std::uint32_t>& order = bins_.order();
   scratch_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) scratch_[i] = parts_[order[i]];
+  chunked([&](std::size_t, std::size_t i) { scratch_[i] = parts_[order[i]]; });
   parts_.swap(scratch_);
-  for (std::size_t i = 0; i < n; ++i) pos_[i] = parts_[i].p.x;
-  binned_ = pos_;
+  binned_.resize(n);
   bin_moved_.assign(bins_.cells(), 0.0);
-  if constexpr (kCached) {
-    cands_.resize(n);
-    for (std::size_t i = 0; i < n; ++i) cache(i);
-  }
+  if constexpr (kCached) cands_.resize(n);
+  chunked([&](std::size_t, std::size_t i) {
+    pos_[i] = binned_[i] = parts_[i].p.x;
+    if constexpr (kCached) cache(i);
+  });
   if (p_.fine_bins && !for_lists) build_fine();
 }
 
