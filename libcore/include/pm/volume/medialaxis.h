@@ -57,7 +57,8 @@ void require_distance_volume(const Volume& v, const std::string& what);
 /// inside, world units; any orthogonal-axes geometry). Nodes where the
 /// reconstructed gradient is shorter than 0.5 (not a distance field, e.g.
 /// clamped beyond a narrow band) are skipped.
-/// \throw UsageError for cos_alpha outside (-1, 1) or foot_iterations < 0;
+/// \throw UsageError for cos_alpha outside (-1, 1), foot_iterations < 0 or
+/// max_distance <= 0;
 /// InputError as require_distance_volume.
 MedialAxisResult medial_axis(const Volume& sdf, const MedialAxisParams& p = {});
 
@@ -68,9 +69,10 @@ MedialAxisResult medial_axis(const Volume& sdf, const MedialAxisParams& p = {});
 /// side whose centre is an MA point, so LFS(p) <= the ball's radius <= the
 /// deepest |d| of that side, while an MA point m is at least d(m) from every
 /// surface point. Only a side that does not reach the grid's faces counts
-/// (its balls lie within the grid); the bound is the smaller of the two
-/// sides' depths (twice that, see kLfsBoundDepths) plus two voxel diagonals for the sampling of the MA, and
-/// infinity when both sides reach the faces. World units.
+/// (its balls lie within the grid). The bound is twice the smaller of the
+/// counting sides' depths (twice: sizingfield's foot-point estimate can lie
+/// off the surface, see kLfsBoundDepths) plus two voxel diagonals for the
+/// sampling of the MA; infinity when both sides reach the faces. World units.
 double medial_axis_lfs_bound(const Volume& sdf);
 
 /// uint8 volume on the grid of `like` with 1 at the node nearest to each
