@@ -3,8 +3,10 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#if defined(__SSE2__)
 #include <emmintrin.h>
 #include <xmmintrin.h>
+#endif
 
 #include <algorithm>
 #include <array>
@@ -103,6 +105,19 @@ namespace {
 // (from whatever they hold) and ignored by the caller.
 void disc_d2_x4(const float (&p)[3][28], const float (&m)[3][28], int n, const double x[3], float rho,
                 float (&out)[28]) {
+#if !defined(__SSE2__)
+  for (int q = 0; q < n; ++q) {  // the same formula, one disc at a time
+    const float v0 = float(double(p[0][q]) - x[0]), v1 = float(double(p[1][q]) - x[1]),
+                v2 = float(double(p[2][q]) - x[2]);
+    const float vv = v0 * v0 + v1 * v1 + v2 * v2;
+    const float a = v0 * m[0][q] + v1 * m[1][q] + v2 * m[2][q];
+    const float aa = a * a;
+    const float lat2 = std::max(0.f, vv - aa);
+    const float lat = std::sqrt(lat2) - rho;
+    const bool point = m[0][q] == 0 && m[1][q] == 0 && m[2][q] == 0;
+    out[q] = point ? vv : lat2 <= rho * rho ? aa : aa + lat * lat;
+  }
+#else
   const __m128d x0 = _mm_set1_pd(x[0]), x1 = _mm_set1_pd(x[1]), x2 = _mm_set1_pd(x[2]);
   const __m128 zero = _mm_setzero_ps(), r = _mm_set1_ps(rho), r2 = _mm_set1_ps(rho * rho);
   auto sub = [](const float* v, __m128d c) {  // float(double(v[i]) - c) for four v
@@ -125,6 +140,7 @@ void disc_d2_x4(const float (&p)[3][28], const float (&m)[3][28], int n, const d
         _mm_and_ps(_mm_and_ps(_mm_cmpeq_ps(m0, zero), _mm_cmpeq_ps(m1, zero)), _mm_cmpeq_ps(m2, zero));
     _mm_store_ps(out + q, _mm_or_ps(_mm_and_ps(point, vv), _mm_andnot_ps(point, d2)));
   }
+#endif
 }
 
 }  // namespace
