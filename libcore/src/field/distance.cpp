@@ -436,14 +436,14 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
           }
         }
         disc_d2_x4(cp, cm, ncand, x, rhof, cd2);
-        double best = kInf;
-        for (int q = 0; q < ncand; ++q)
-          if (double(cd2[q]) < best) {
-            best = double(cd2[q]);
-            arg = cand[q];
-          }
+        float best = std::numeric_limits<float>::infinity();  // the first strict minimum, without a branch
+        for (int q = 0; q < ncand; ++q) {
+          const bool lt = cd2[q] < best;
+          best = lt ? cd2[q] : best;
+          arg = lt ? cand[q] : arg;
+        }
         site[c] = arg;
-        sq[c] = float(best);
+        sq[c] = best;
       }
   });
 
