@@ -186,10 +186,11 @@ def side_by_side(case, name, target, inp, make_vars, stages, peer, vertex_target
         # Issue #16's engine targets, from the particle stage's own statistics.
         for tool, per_s in (("particles", 4e6), ("multiparticles", 1.5e6)):
             path = os.path.join(out, "work", f"{tool}.json")
-            eng = json.load(open(path)).get("engine", {}) if os.path.exists(path) else {}
+            st = json.load(open(path)) if os.path.exists(path) else {}
+            eng = st.get("engine", {})
             if not eng.get("updates"):
                 continue
-            parts = json.load(open(path))["counts"]["particles"]
+            parts = st["counts"]["particles"]
             row(case, f"{name}: {tool} updates per second (#16)", round(eng["updates_per_second"] / 1e6, 2), "M/s",
                 f">= {per_s / 1e6:g}", eng["updates_per_second"] >= per_s,
                 f"{eng['updates']} updates, {eng['updates'] / max(parts, 1):.1f} per particle (#16: <= 50), "

@@ -42,9 +42,9 @@ void add_medialaxis_options(CLI::App& app, MedialAxisRun& cfg) {
 
   app.add_flag("--lfs-only", cfg.lfs_only,
                "Keep only the medial-axis points that can be the nearest one of some surface point, "
-               "for sizingfield: those within the depth of the shallower side (the one that stays "
-               "inside the grid) plus two voxel diagonals, world units. The local feature size is "
-               "the same; the far medial axis (deep in a large background) is skipped");
+               "for sizingfield: those within twice the depth of the shallower side (the one that "
+               "stays inside the grid) plus two voxel diagonals, world units. The local feature size "
+               "is the same; the far medial axis (deep in a large background) is skipped");
   pm::add_frame_option(app, cfg.frame);
 }
 

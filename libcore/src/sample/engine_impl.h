@@ -184,6 +184,24 @@ double ParticleEngine<C>::energy_at(const Vec3& x, const Vec3& n, double a, std:
 // per candidate.
 constexpr std::uint32_t kGatherChunk = 32;
 
+template <class C>
+template <class Id>
+void ParticleEngine<C>::take_in_reach(std::size_t count, Id id, const Vec3& x, double r2, std::size_t self,
+                                      const Particle& P, std::vector<Cand>& out) const {
+  for (std::size_t j0 = 0; j0 < count; j0 += kGatherChunk) {
+    const std::size_t end = std::min<std::size_t>(count, j0 + kGatherChunk);
+    std::uint32_t sel[kGatherChunk];
+    std::uint32_t n = 0;
+    for (std::size_t j = j0; j < end; ++j) {
+      const std::uint32_t q = id(j);
+      sel[n] = q;
+      n += (q != self) & (norm2(pos_[q] - x) < r2);
+    }
+    for (std::uint32_t s = 0; s < n; ++s)
+      if (kCached || sees(P, parts_[sel[s]])) push_neighbour(out, P, sel[s]);
+  }
+}
+
 // Candidates within `reach` of x, excluding self and particles self does
 // not see: from the fine grid when it is in use and its search stays inside
 // the 3x3x3 block of bins (see build_fine), else from that block, where a
@@ -200,18 +218,7 @@ void ParticleEngine<C>::gather(const Vec3& x, double reach, std::size_t self, st
     if (need + fine_.width() < bins_.width()) {  // the rebuilt grid may be wider than fine_w_
       const Particle& P0 = parts_[self];
       fine_.visit_ball_ranges(x, need, [&](const std::uint32_t* b, const std::uint32_t* e) {
-        for (; b < e; b += kGatherChunk) {
-          const std::uint32_t* end = std::min(b + kGatherChunk, e);
-          std::uint32_t sel[kGatherChunk];
-          std::uint32_t n = 0;
-          for (const std::uint32_t* it = b; it < end; ++it) {
-            const std::uint32_t q = *it;
-            sel[n] = q;
-            n += (q != self) & (norm2(pos_[q] - x) < r2);
-          }
-          for (std::uint32_t s = 0; s < n; ++s)
-            if (kCached || sees(P0, parts_[sel[s]])) push_neighbour(out, P0, sel[s]);
-        }
+        take_in_reach(std::size_t(e - b), [b](std::size_t j) { return b[j]; }, x, r2, self, P0, out);
       });
       return;
     }
@@ -230,20 +237,7 @@ void ParticleEngine<C>::gather(const Vec3& x, double reach, std::size_t self, st
     if (nb[k] < 0) continue;
     if (!((m[0] >> (k % 3)) & 1) || !((m[1] >> ((k / 3) % 3)) & 1) || !((m[2] >> (k / 9)) & 1)) continue;
     bins_.visit_box(std::size_t(nb[k]), x, pad, [&](std::uint32_t b, std::uint32_t e) {
-      // As in energy_at: select without a branch, then copy in order.
-      for (std::uint32_t q0 = b; q0 < e; q0 += kGatherChunk) {
-        const std::uint32_t m = std::min(kGatherChunk, e - q0);
-        std::uint32_t sel[kGatherChunk];
-        std::uint32_t n = 0;
-        for (std::uint32_t q = q0; q < q0 + m; ++q) {
-          sel[n] = q;
-          n += (norm2(pos_[q] - x) < r2) & (q != self);
-        }
-        for (std::uint32_t s = 0; s < n; ++s) {
-          if (!kCached && !sees(P, parts_[sel[s]])) continue;
-          push_neighbour(out, P, sel[s]);
-        }
-      }
+      take_in_reach(e - b, [b](std::size_t j) { return std::uint32_t(b + j); }, x, r2, self, P, out);
     });
   }
 }
@@ -252,18 +246,9 @@ template <class C>
 void ParticleEngine<C>::gather_list(const Vec3& x, double reach, std::size_t self, std::vector<Cand>& out) const {
   out.clear();
   const double r2 = reach * reach;
-  const Particle& P = parts_[self];
-  const std::uint32_t e = nbr_start_[self + 1];
-  for (std::uint32_t k0 = nbr_start_[self]; k0 < e; k0 += kGatherChunk) {
-    const std::uint32_t m = std::min(kGatherChunk, e - k0);
-    std::uint32_t sel[kGatherChunk];
-    std::uint32_t n = 0;
-    for (std::uint32_t k = k0; k < k0 + m; ++k) {
-      sel[n] = nbr_[k];
-      n += norm2(pos_[nbr_[k]] - x) < r2;
-    }
-    for (std::uint32_t s = 0; s < n; ++s) push_neighbour(out, P, sel[s]);
-  }
+  const std::uint32_t* list = nbr_.data() + nbr_start_[self];
+  take_in_reach(nbr_start_[self + 1] - nbr_start_[self], [list](std::size_t j) { return list[j]; }, x, r2, self,
+                parts_[self], out);
 }
 
 // --- the moves (SPEC §3, adaptive step size) --------------------------------

@@ -751,25 +751,23 @@ class ParticleEngine {
   void cache(std::size_t q) {
     if constexpr (kCached) cands_[q] = cand_of(parts_[q], parts_[q]);
   }
-  // Appends q's Cand as seen from i, built in place (pair-free constraints:
-  // copied from the cache).
+  // Appends q's Cand as seen from i (pair-free constraints: from the cache).
   void push_neighbour(std::vector<Cand>& out, const Particle& i, std::size_t q) const {
     if constexpr (kCached) {
       (void)i;
       out.push_back(cands_[q]);
     } else {
-      const Particle& o = parts_[q];
-      Cand& c = out.emplace_back();
-      c.x = o.p.x;
-      c.n = o.p.n;
-      c.a = p_.sizing_mode ? beta_ / (scale_ * o.attr) : o.attr;
-      c.type = o.type;
-      c.weighted = c_.weighted(i.p) && c_.same_cell(i.p, o.p);
+      out.push_back(cand_of(i, parts_[q]));
     }
   }
   bool sees(const Particle& i, const Particle& o) const { return c_.sees(i.p, o.p, o.fixed); }
   void gather(const Vec3& x, double reach, std::size_t self, std::size_t cell, std::vector<Cand>& out) const;
   void gather_list(const Vec3& x, double reach, std::size_t self, std::vector<Cand>& out) const;
+  // Appends the Cands of particles id(0), .., id(count - 1) within sqrt(r2)
+  // of x that are not `self` and that P sees, in that order.
+  template <class Id>
+  void take_in_reach(std::size_t count, Id id, const Vec3& x, double r2, std::size_t self, const Particle& P,
+                     std::vector<Cand>& out) const;
   void update(std::size_t i, std::size_t cell, std::vector<Cand>& buf, EngineStats& local);
   void build_lists();
   bool lists_stale() const;
