@@ -163,6 +163,8 @@ pm_cli_test(tighten.bad_extension "tighten: usage error: output .*pm_ti_x.xyz.*u
 pm_cli_test(tighten.pads_border "tighten: warning: the mask comes within R \\+ 3 voxels of the border: padded by 2 voxels" ${TI} ${D}/box_mask.nrrd /tmp/pm_ti_pad.nrrd --radius 1)
 pm_cli_test(tighten.help_example "Example:.*tighten .*--radius" ${TI} --help)
 pm_cli_script(tighten.workflow tighten_test.sh)
+# frog5's label map (skipped without ../shared/data): stopped on the zero set's mean move over a cycle
+pm_cli_script(tighten.converges_on_frog tighten_frog_test.sh)
 # == medialaxis
 set(MA $<TARGET_FILE:medialaxis>)
 pm_cli_test(medialaxis.missing_file "medialaxis: error: .*nope.nrrd.*no such file" ${MA} ${D}/nope.nrrd /tmp/pm_ma_x.ply)

@@ -32,11 +32,11 @@ void add_tighten_options(CLI::App& app, TightenRun& cfg) {
       ->capture_default_str();
   app.add_option("--iterations", cfg.params.max_iterations,
                  "Most flow steps; 0 = automatic (until converged, at "
-                 "most 20 (R/h)^2 + 100)")
+                 "most 20 (R/h)^2 + 160)")
       ->capture_default_str();
   app.add_option("--tolerance", cfg.params.tolerance,
-                 "Converged when the zero set moves less than this per step, "
-                 "voxels")
+                 "Converged when no node of the zero set moves more than this in a step, or when it moved "
+                 "less than half of this in the mean over a --reinit cycle, voxels")
       ->capture_default_str();
   app.add_option("--reinit", cfg.params.reinit_every,
                  "Every N flow steps, re-distance the flowing field if |grad phi| at the zero set is off 1 by > 0.5")
@@ -117,14 +117,15 @@ void run_tighten(TightenRun& cfg, const CommonFlags& flags) {
         if (r.radius < r.requested_radius) pm::warn("label " + std::to_string(label) + ": " + pm::tighten_radius_note(r));
         if (!r.converged)
           pm::warn("label " + std::to_string(label) + ": not converged after " + std::to_string(r.iterations) +
-                   " steps (last move " + std::to_string(r.last_change) + " voxels); raise --iterations");
+                   " steps (last move " + std::to_string(r.last_change) + " voxels, mean over the last cycle " +
+                   std::to_string(r.cycle_change) + "); raise --iterations");
         pm::info("label " + std::to_string(label) + ": " + std::to_string(r.iterations) + " flow steps -> " + path);
         pm::write_volume(r.distance, path, wp);
         outputs.push_back(path);
         per[std::to_string(label)] = {{"inside_voxels", r.inside_voxels}, {"mortar_nodes", r.mortar_nodes},
                                       {"iterations", r.iterations},       {"reinits", r.reinits},
                                       {"converged", r.converged},         {"last_change_voxels", r.last_change},
-                                      {"radius", r.radius}};
+                                      {"cycle_change_voxels", r.cycle_change}, {"radius", r.radius}};
       });
     } catch (const pm::InputError& e) {
       throw pm::InputError(pm::quote(in) + ": " + e.what());
@@ -149,14 +150,16 @@ void run_tighten(TightenRun& cfg, const CommonFlags& flags) {
   if (r.radius < r.requested_radius) pm::warn(pm::tighten_radius_note(r));
   if (!r.converged)
     pm::warn("not converged after " + std::to_string(r.iterations) + " steps (last move " +
-             std::to_string(r.last_change) + " voxels); raise --iterations");
+             std::to_string(r.last_change) + " voxels, mean over the last cycle " + std::to_string(r.cycle_change) +
+             "); raise --iterations");
   pm::info(std::to_string(r.iterations) + " flow steps over " + std::to_string(r.mortar_nodes) + " mortar nodes");
   pm::write_volume(r.distance, out, wp);
   st["outputs"] = {out};
   st["counts"] = {{"inside_voxels", r.inside_voxels},   {"mortar_nodes", r.mortar_nodes},
                   {"iterations", r.iterations},         {"reinits", r.reinits},
                   {"converged", r.converged},           {"pad", r.pad},
-                  {"last_change_voxels", r.last_change}, {"radius", r.radius}};
+                  {"last_change_voxels", r.last_change}, {"cycle_change_voxels", r.cycle_change},
+                  {"radius", r.radius}};
 }
 
 }  // namespace pm

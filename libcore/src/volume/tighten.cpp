@@ -216,6 +216,35 @@ double gradient_defect(const Band& band, const std::vector<float>& cur, const do
   return *std::max_element(worst.begin(), worst.end());
 }
 
+// Mean change of the active nodes next to the zero set (a face neighbour
+// across it) from `before` to `cur`, in units of h (0 when there are none).
+double zero_set_mean_move(const Band& band, const std::vector<float>& cur, const std::vector<float>& before,
+                          double h) {
+  const std::size_t n = band.active;
+  const std::size_t chunks = std::max<std::size_t>(1, n / 4096 + 1);
+  std::vector<double> sum(chunks, 0.0), cnt(chunks, 0.0);
+  pm::parallel_for(std::size_t(0), chunks, [&](std::size_t ch) {
+    double s = 0, c = 0;
+    for (std::size_t t = n * ch / chunks, e = n * (ch + 1) / chunks; t < e; ++t) {
+      const std::uint32_t* r = &band.ref[t * Band::kRefs];
+      const bool neg = cur[t] < 0;
+      bool across = false;
+      for (int k = 0; k < 6; ++k) across |= (cur[r[k]] < 0) != neg;
+      if (!across) continue;
+      s += std::fabs(double(cur[t]) - double(before[t]));
+      c += 1;
+    }
+    sum[ch] = s;
+    cnt[ch] = c;
+  });
+  double s = 0, c = 0;
+  for (std::size_t ch = 0; ch < chunks; ++ch) {  // in chunk order: the same sum for any thread count
+    s += sum[ch];
+    c += cnt[ch];
+  }
+  return c > 0 ? s / c / h : 0.0;
+}
+
 }  // namespace
 
 std::string tighten_radius_note(const TightenResult& r) {
@@ -465,6 +494,12 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
   DistanceParams reinit;
   reinit.band = 2 * w;
   const std::size_t sy = wd.nx, sz = wd.nx * wd.ny;
+  // The active values at the start of the current re-distancing cycle: a few
+  // nodes on thin necks keep moving (the largest move rarely settles), while
+  // the zero set as a whole converges geometrically; it has converged when
+  // its mean move over a whole cycle is below kTightenCycleShare of the
+  // tolerance.
+  std::vector<float> cycle_start(cur.begin(), cur.begin() + long(band.active));
   for (int it = 1; it <= max_it && !active.empty(); ++it) {
     check_cancelled();
     const double moved = flow_step(band, cur, next, lo_a, hi_a, h, dt, 1.5 * hmax);
@@ -475,6 +510,14 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
     if (res.last_change < p.tolerance && !after_reinit) {
       res.converged = true;
       break;
+    }
+    if (it % p.reinit_every == 0) {
+      res.cycle_change = zero_set_mean_move(band, cur, cycle_start, hmin);
+      if (res.cycle_change < kTightenCycleShare * p.tolerance) {
+        res.converged = true;
+        break;
+      }
+      std::copy_n(cur.begin(), band.active, cycle_start.begin());
     }
     // Re-distance only while the zero set still moves (near convergence it
     // would only perturb the flow) and only when the field has drifted from a
