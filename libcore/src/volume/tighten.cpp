@@ -188,6 +188,15 @@ double flow_step(const Band& band, const std::vector<float>& cur, std::vector<fl
   return *std::max_element(moved.begin(), moved.end());
 }
 
+// Whether active node t has a face neighbour across the zero set of v.
+inline bool next_to_zero_set(const Band& band, const std::vector<float>& v, std::size_t t) {
+  const std::uint32_t* r = &band.ref[t * Band::kRefs];
+  const bool neg = v[t] < 0;
+  bool across = false;
+  for (int k = 0; k < 6; ++k) across |= (v[r[k]] < 0) != neg;
+  return across;
+}
+
 // Re-distance when |grad phi| at the zero set leaves [1 - d, 1 + d] with d:
 constexpr double kReinitDefect = 0.5;
 
@@ -200,12 +209,8 @@ double gradient_defect(const Band& band, const std::vector<float>& cur, const do
   pm::parallel_for(std::size_t(0), chunks, [&](std::size_t ch) {
     double w = 0;
     for (std::size_t t = n * ch / chunks, e = n * (ch + 1) / chunks; t < e; ++t) {
+      if (!next_to_zero_set(band, cur, t)) continue;
       const std::uint32_t* r = &band.ref[t * Band::kRefs];
-      const float f = cur[t];
-      const bool neg = f < 0;
-      bool across = false;
-      for (int k = 0; k < 6; ++k) across |= (cur[r[k]] < 0) != neg;
-      if (!across) continue;
       const double px = (double(cur[r[0]]) - cur[r[1]]) / (2 * h[0]);
       const double py = (double(cur[r[2]]) - cur[r[3]]) / (2 * h[1]);
       const double pz = (double(cur[r[4]]) - cur[r[5]]) / (2 * h[2]);
@@ -226,11 +231,7 @@ double zero_set_mean_move(const Band& band, const std::vector<float>& cur, const
   pm::parallel_for(std::size_t(0), chunks, [&](std::size_t ch) {
     double s = 0, c = 0;
     for (std::size_t t = n * ch / chunks, e = n * (ch + 1) / chunks; t < e; ++t) {
-      const std::uint32_t* r = &band.ref[t * Band::kRefs];
-      const bool neg = cur[t] < 0;
-      bool across = false;
-      for (int k = 0; k < 6; ++k) across |= (cur[r[k]] < 0) != neg;
-      if (!across) continue;
+      if (!next_to_zero_set(band, cur, t)) continue;
       s += std::fabs(double(cur[t]) - double(before[t]));
       c += 1;
     }
