@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <vector>
 
@@ -193,6 +194,38 @@ TEST(ParticlesEnergy, PolynomialCotangentMatchesLibm) {
     const double de = 0.5 * kPi * (1 - 1 / (sn * sn));
     EXPECT_NEAR(d, de, 1e-13 * std::max(1.0, std::fabs(de)));
   }
+}
+
+// The batch pair terms (four at a time where the CPU has AVX2) carry the
+// scalar loop's bits: every length 0-33 (whole and partial vectors), pairs
+// beyond the range (r >= 1), at distance 0, with weight 0 and partial
+// weights, both energies, with and without the force.
+TEST(ParticleEnergy, PairTermsMatchTheScalarLoopBitForBit) {
+  std::uint64_t state = 12345;
+  auto uniform = [&] {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return double(state >> 11) * 0x1.0p-53;
+  };
+  for (ParticleEnergy en : {ParticleEnergy::cotangent, ParticleEnergy::radial})
+    for (std::size_t n = 0; n <= 33; ++n)
+      for (bool force : {false, true}) {
+        std::vector<double> d2(n), al(n), w(n), ew(n + 3, -1.0), fs(n + 3, -1.0);
+        for (std::size_t s = 0; s < n; ++s) {
+          d2[s] = s % 7 == 3 ? 0.0 : 2.0 * uniform();  // about a third beyond the range
+          al[s] = 0.2 + uniform();
+          w[s] = s % 5 == 1 ? 0.0 : s % 5 == 2 ? uniform() : 1.0;
+        }
+        particle_pair_terms(en, n, d2.data(), al.data(), w.data(), ew.data(), force ? fs.data() : nullptr);
+        for (std::size_t s = 0; s < n; ++s) {
+          const double dist = std::sqrt(d2[s]);
+          double de = 0;
+          const double e = w[s] * particle_pair_energy(en, al[s] * dist + engine_constants::kEpsR, de);
+          EXPECT_EQ(std::memcmp(&ew[s], &e, sizeof e), 0) << "n " << n << " pair " << s << ": " << ew[s] << " vs " << e;
+          if (!force) continue;
+          const double f = dist > 0 ? w[s] * de * al[s] / dist : 0.0;
+          EXPECT_EQ(std::memcmp(&fs[s], &f, sizeof f), 0) << "n " << n << " pair " << s << ": " << fs[s] << " vs " << f;
+        }
+      }
 }
 
 // --- uniform sampling -------------------------------------------------------------

@@ -14,6 +14,7 @@
 
 #include <tbb/blocked_range.h>
 
+#include "pm/base/cpu.h"
 #include "pm/base/error.h"
 #include "pm/base/parallel.h"
 
@@ -472,15 +473,6 @@ __attribute__((target("avx2"))) double accumulate_avx2(const Grid& gr, const Tap
   return accumulate_rows_avx2<V, D, Order, false>(tp, wv, wd, d1, d2, base, lane, g, h);
 }
 
-bool cpu_has_avx2() {
-  static const bool has = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") != 0;
-  }();
-  return has;
-}
-#else
-bool cpu_has_avx2() { return false; }
 #endif
 
 // grad_world = D^{-T} grad_index (M = D^{-1}).

@@ -1,13 +1,111 @@
 #include "pm/sample/engine.h"
 
+#if defined(__GNUC__) && defined(__x86_64__) && !defined(PM_NO_AVX2)
+#define PM_ENGINE_AVX2 1
+#include <immintrin.h>
+#else
+#define PM_ENGINE_AVX2 0
+#endif
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <unordered_map>
 
+#include "pm/base/cpu.h"
+
 namespace pm {
 
 using namespace engine_constants;
+
+namespace {
+
+// The pair loop's scalar arithmetic, the reference of the AVX2 copy.
+void pair_terms_scalar(ParticleEnergy en, std::size_t n, const double* d2, const double* al, const double* w,
+                       double* ew, double* fs) {
+  for (std::size_t s = 0; s < n; ++s) {
+    const double dist = std::sqrt(d2[s]);
+    double de = 0;
+    ew[s] = w[s] * particle_pair_energy(en, al[s] * dist + kEpsR, de);
+    if (fs) fs[s] = dist > 0 ? w[s] * de * al[s] / dist : 0.0;
+  }
+}
+
+#if PM_ENGINE_AVX2
+// pair_terms_scalar for the cotangent (particle_pair_energy and cot_fast),
+// lane by lane: every operation is the scalar one (IEEE add, mul, div,
+// sqrt; no FMA in this target) in the scalar order, so every lane's bits
+// equal the scalar result. Four pairs per vector, G vectors per round as
+// independent chains; a partial last vector is loaded masked and stored
+// whole (the outputs have room for n rounded up to four).
+template <bool Masked>
+__attribute__((target("avx2"), always_inline)) inline __m256d load4(const double* p, __m256i mask) {
+  return Masked ? _mm256_maskload_pd(p, mask) : _mm256_loadu_pd(p);
+}
+template <int G, bool Masked>
+__attribute__((target("avx2"), always_inline)) inline void cotangent_round(const double* d2, const double* al,
+                                                                          const double* w, double* ew, double* fs,
+                                                                          __m256i mask) {
+  constexpr double kHalfPi = 1.5707963267948966;
+  const __m256d half_pi = _mm256_set1_pd(kHalfPi), one = _mm256_set1_pd(1.0);
+  __m256d d[G], a[G], u[G], g[G], in[G];
+  for (int v = 0; v < G; ++v) {
+    // Idle lanes read d2 = 1 (no 0/0 below).
+    __m256d dd = load4<Masked>(d2 + 4 * v, mask);
+    if (Masked) dd = _mm256_blendv_pd(_mm256_set1_pd(1.0), dd, _mm256_castsi256_pd(mask));
+    d[v] = _mm256_sqrt_pd(dd);
+    const __m256d r = _mm256_add_pd(_mm256_mul_pd(load4<Masked>(al + 4 * v, mask), d[v]), _mm256_set1_pd(kEpsR));
+    // E and dE/dr are 0 where !(r < 1), as in particle_pair_energy (NaN stays NaN).
+    in[v] = _mm256_cmp_pd(r, one, _CMP_NGE_UQ);
+    a[v] = _mm256_mul_pd(half_pi, r);
+    u[v] = _mm256_sub_pd(_mm256_mul_pd(_mm256_mul_pd(a[v], a[v]), _mm256_set1_pd(kCotU)), one);
+    g[v] = _mm256_set1_pd(kCotCoefficients[11]);
+  }
+  for (int k = 10; k >= 0; --k)
+    for (int v = 0; v < G; ++v)
+      g[v] = _mm256_add_pd(_mm256_mul_pd(g[v], u[v]), _mm256_set1_pd(kCotCoefficients[k]));
+  for (int v = 0; v < G; ++v) {
+    const __m256d ct = _mm256_sub_pd(_mm256_div_pd(one, a[v]), _mm256_mul_pd(a[v], g[v]));
+    const __m256d wv = load4<Masked>(w + 4 * v, mask);
+    const __m256d e = _mm256_and_pd(in[v], _mm256_sub_pd(_mm256_add_pd(ct, a[v]), half_pi));
+    _mm256_storeu_pd(ew + 4 * v, _mm256_mul_pd(wv, e));
+    if (fs) {
+      const __m256d de = _mm256_and_pd(in[v], _mm256_mul_pd(_mm256_mul_pd(_mm256_set1_pd(-kHalfPi), ct), ct));
+      const __m256d f = _mm256_div_pd(_mm256_mul_pd(_mm256_mul_pd(wv, de), load4<Masked>(al + 4 * v, mask)), d[v]);
+      _mm256_storeu_pd(fs + 4 * v, _mm256_and_pd(_mm256_cmp_pd(d[v], _mm256_setzero_pd(), _CMP_GT_OQ), f));
+    }
+  }
+}
+
+__attribute__((target("avx2"))) void cotangent_terms_avx2(std::size_t n, const double* d2, const double* al,
+                                                         const double* w, double* ew, double* fs) {
+  const __m256i all = _mm256_set1_epi64x(-1);
+  std::size_t s = 0;
+  for (; s + 8 <= n; s += 8) cotangent_round<2, false>(d2 + s, al + s, w + s, ew + s, fs ? fs + s : nullptr, all);
+  if (s + 4 <= n) {
+    cotangent_round<1, false>(d2 + s, al + s, w + s, ew + s, fs ? fs + s : nullptr, all);
+    s += 4;
+  }
+  if (s == n) return;
+  const long m = long(n - s);
+  const __m256i mask = _mm256_cmpgt_epi64(_mm256_set1_epi64x(m), _mm256_setr_epi64x(0, 1, 2, 3));
+  cotangent_round<1, true>(d2 + s, al + s, w + s, ew + s, fs ? fs + s : nullptr, mask);
+}
+
+#endif
+
+}  // namespace
+
+void particle_pair_terms(ParticleEnergy en, std::size_t n, const double* d2, const double* al, const double* w,
+                         double* ew, double* fs) {
+#if PM_ENGINE_AVX2
+  if (en == ParticleEnergy::cotangent && cpu_has_avx2()) {
+    cotangent_terms_avx2(n, d2, al, w, ew, fs);
+    return;
+  }
+#endif
+  pair_terms_scalar(en, n, d2, al, w, ew, fs);
+}
 
 double engine_beta() {
   static const double beta = 0.5 / std::cos(kPi / 6);
@@ -160,10 +258,24 @@ double particle_ideal_energy(ParticleEnergy e) {
 
 // --- bins ----------------------------------------------------------------------
 
+namespace {
+// The box of the particles' (finite) positions, without Box::extend's
+// NaN-tolerant fmin/fmax (a library call per coordinate; the bins are built
+// before every sweep and the fine grid before every colour).
+Box points_box(const std::vector<Vec3>& x) {
+  Box bb;
+  for (const Vec3& p : x)
+    for (int a = 0; a < 3; ++a) {
+      bb.lo[a] = p[a] < bb.lo[a] ? p[a] : bb.lo[a];
+      bb.hi[a] = p[a] > bb.hi[a] ? p[a] : bb.hi[a];
+    }
+  return bb;
+}
+}  // namespace
+
 void SampleBins::build(const std::vector<Vec3>& x, double w, const std::vector<char>& active, int sub) {
   const std::size_t n = x.size();
-  Box bb;
-  for (const Vec3& p : x) bb.extend(p);
+  const Box bb = points_box(x);
   // Keep the grid's index space reasonable (wider bins are always correct).
   const Vec3 ext = n ? bb.size() : Vec3{};
   const double longest = std::max({ext.x, ext.y, ext.z, 0.0});
@@ -283,8 +395,7 @@ void DenseBins::build(const std::vector<Vec3>& x, double w, std::size_t max_cell
   start_.clear();
   order_.resize(n);
   if (n == 0 || !(w > 0)) return;
-  Box bb;
-  for (const Vec3& p : x) bb.extend(p);
+  const Box bb = points_box(x);
   const Vec3 ext = bb.size();
   max_cells = std::max<std::size_t>(max_cells, 1);
   for (;;) {
@@ -300,18 +411,22 @@ void DenseBins::build(const std::vector<Vec3>& x, double w, std::size_t max_cell
   lo_ = bb.lo;
   const std::size_t cells = std::size_t(n_[0]) * std::size_t(n_[1]) * std::size_t(n_[2]);
   // Counting sort by cell: stable, so a cell lists its points by index.
-  start_.assign(cells + 1, 0u);
+  // The cells in parallel; then start_[c] counts up to the end of cell c,
+  // and a backward scatter leaves it at the cell's first slot.
   cell_of_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const Vec3& p = x[i];
-    const std::size_t c = std::size_t(clamp_cell(p.x, 0)) +
-                          std::size_t(n_[0]) * (std::size_t(clamp_cell(p.y, 1)) + std::size_t(n_[1]) * std::size_t(clamp_cell(p.z, 2)));
-    cell_of_[i] = std::uint32_t(c);
-    ++start_[c + 1];
-  }
-  for (std::size_t c = 0; c < cells; ++c) start_[c + 1] += start_[c];
-  next_.assign(start_.begin(), start_.end() - 1);
-  for (std::size_t i = 0; i < n; ++i) order_[next_[cell_of_[i]]++] = std::uint32_t(i);
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t i = r.begin(); i != r.end(); ++i) {
+      const Vec3& p = x[i];
+      cell_of_[i] = std::uint32_t(std::size_t(clamp_cell(p.x, 0)) +
+                                  std::size_t(n_[0]) * (std::size_t(clamp_cell(p.y, 1)) +
+                                                        std::size_t(n_[1]) * std::size_t(clamp_cell(p.z, 2))));
+    }
+  });
+  start_.assign(cells + 1, 0u);
+  for (std::size_t i = 0; i < n; ++i) ++start_[cell_of_[i]];
+  for (std::size_t c = 1; c < cells; ++c) start_[c] += start_[c - 1];
+  start_[cells] = std::uint32_t(n);
+  for (std::size_t i = n; i-- > 0;) order_[--start_[cell_of_[i]]] = std::uint32_t(i);
 }
 
 std::int32_t SampleBins::find(std::uint64_t key) const {

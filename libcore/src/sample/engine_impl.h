@@ -139,10 +139,11 @@ double ParticleEngine<C>::energy_at(const Vec3& x, const Vec3& n, double a, std:
   // Two passes per chunk of candidates: the first finds, without a branch,
   // those within interaction range (about half of them, in no predictable
   // order: a branch there mispredicts half the time), the second sums their
-  // energies in the candidates' order, so the sums are the same bit for bit.
+  // energies in the candidates' order, so the sums are the same bit for bit
+  // (the pair terms themselves four at a time, particle_pair_terms).
   constexpr std::size_t kChunk = 32;
   std::uint8_t sel[kChunk];
-  double sel_al[kChunk], sel_d2[kChunk];
+  double sel_al[kChunk], sel_d2[kChunk], sel_w[kChunk], sel_e[kChunk], sel_f[kChunk];
   for (std::size_t base = 0; base < cs.size(); base += kChunk) {
     const std::size_t m = std::min(kChunk, cs.size() - base);
     const Cand* cb = cs.data() + base;
@@ -165,12 +166,13 @@ double ParticleEngine<C>::energy_at(const Vec3& x, const Vec3& n, double a, std:
     count += int(k);
     for (std::size_t s = 0; s < k; ++s) {
       const Cand& c = cb[sel[s]];
-      const double w = c.weighted ? normal_weight(dot(n, c.n)) : 1.0;
-      if (w == 0) continue;
-      const double al = sel_al[s], dist = std::sqrt(sel_d2[s]);
-      double de = 0;
-      e += w * particle_pair_energy(p_.energy, al * dist + kEpsR, de);
-      if (v && dist > 0) force -= (x - c.x) * (w * de * al / dist);
+      sel_w[s] = c.weighted ? normal_weight(dot(n, c.n)) : 1.0;
+    }
+    particle_pair_terms(p_.energy, k, sel_d2, sel_al, sel_w, sel_e, v ? sel_f : nullptr);
+    for (std::size_t s = 0; s < k; ++s) {
+      if (sel_w[s] == 0) continue;
+      e += sel_e[s];
+      if (v) force -= (x - cb[sel[s]].x) * sel_f[s];
     }
   }
   if (v) *v = force;

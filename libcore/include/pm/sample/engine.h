@@ -69,20 +69,21 @@ enum class ParticleEnergy {
 /// Ideal energy of one surface particle, 6 E(β) (hexagonal 1-ring at |r| = β).
 double particle_ideal_energy(ParticleEnergy e);
 
+/// cot_fast's polynomial: u = kCotU a² - 1 and g(u) = Σ kCotCoefficients[k] u^k.
+constexpr double kCotU = 2.0 / (1.5707963267948966 * 1.5707963267948966);
+constexpr double kCotCoefficients[12] = {
+    0.3644240924627032,    0.035284612224661914,  0.004786418171844347,  0.0006770200264722433,
+    9.651374716101062e-05, 1.3781290994788787e-05, 1.9685840362232052e-06, 2.812227398865763e-07,
+    4.011325214527347e-08, 5.727342515802359e-09, 8.723542947382136e-10, 1.2580017844867603e-10};
 /// cot(a) for 0 < a <= π/2 without a call to sin and cos: cot a = 1/a - a g(a²)
 /// with g(t) = Σ 2^2n |B_2n| t^(n-1) / (2n)! (B the Bernoulli numbers) as a
 /// degree-11 polynomial in u = 2t/(π/2)² - 1, fitted at Chebyshev nodes to
 /// the series: g is within 2.5e-14, cot within 4e-14 on the whole range
 /// (tests/unit/particles_test).
 inline double cot_fast(double a) {
-  constexpr double kU = 2.0 / (1.5707963267948966 * 1.5707963267948966);
-  constexpr double c[12] = {0.3644240924627032, 0.035284612224661914, 0.004786418171844347,
-                            0.0006770200264722433, 9.651374716101062e-05, 1.3781290994788787e-05,
-                            1.9685840362232052e-06, 2.812227398865763e-07, 4.011325214527347e-08,
-                            5.727342515802359e-09, 8.723542947382136e-10, 1.2580017844867603e-10};
-  const double u = a * a * kU - 1.0;
-  double g = c[11];
-  for (int k = 10; k >= 0; --k) g = g * u + c[k];
+  const double u = a * a * kCotU - 1.0;
+  double g = kCotCoefficients[11];
+  for (int k = 10; k >= 0; --k) g = g * u + kCotCoefficients[k];
   return 1.0 / a - a * g;
 }
 
@@ -103,6 +104,17 @@ inline double particle_pair_energy(ParticleEnergy e, double r, double& dE_dr) {
   dE_dr = -kHalfPi * ct * ct;
   return ct + a - kHalfPi;
 }
+
+/// The pair loop's arithmetic for n pairs at once: with dist = sqrt(d2[s])
+/// and r = al[s] dist + ε_r (kEpsR), ew[s] = w[s] E(r) and, when fs is
+/// given, fs[s] = w[s] dE/dr(r) al[s] / dist (0 at dist 0): the pair's force
+/// on the first particle is -(x_i - x_j) fs[s]. The cotangent runs four
+/// pairs per AVX2 instruction where the CPU has it, with the same operations
+/// in the same order as particle_pair_energy (no fused multiply-add): the
+/// same bits as the scalar loop. ew and fs have room for n rounded up to a
+/// multiple of 4 (the entries past n are scratch).
+void particle_pair_terms(ParticleEnergy e, std::size_t n, const double* d2, const double* al, const double* w,
+                         double* ew, double* fs);
 
 // ---------------------------------------------------------------------------
 // Constants of the particle system, named once (SPEC §3 parameter table).
@@ -524,7 +536,7 @@ class DenseBins {
     const double c0 = lo_[a] + double(i) * w_;
     return v < c0 ? c0 - v : v > c0 + w_ ? v - c0 - w_ : 0.0;
   }
-  std::vector<std::uint32_t> start_, order_, cell_of_, next_;
+  std::vector<std::uint32_t> start_, order_, cell_of_;
   long n_[3] = {0, 0, 0};
   Vec3 lo_;
   double w_ = 1;
