@@ -35,7 +35,15 @@ PY
 "$TI" "$D/box_mask.nrrd" "$T/t2.nrrd" --radius 0.5 --threads 2 -q
 cmp "$T/t1.nrrd" "$T/t2.nrrd"
 
-# 3. A failed run leaves no output and no temporary file.
+# 3. Messages: a run stopped at the step cap before a whole re-distancing
+#    cycle says so without a cycle mean; a given radius with the automatic
+#    upsampling prints no empty reason.
+"$TI" "$D/box_mask.nrrd" "$T/c.nrrd" --radius 0.5 --iterations 2 --upsample auto 2> "$T/c.err"
+grep -q "not converged after 2 steps (last move [0-9.]* voxels); raise --iterations" "$T/c.err" ||
+  { echo "cap message:"; cat "$T/c.err"; exit 1; }
+if grep -q "()" "$T/c.err"; then echo "empty reason:"; cat "$T/c.err"; exit 1; fi
+
+# 4. A failed run leaves no output and no temporary file.
 mkdir "$T/fail"
 if "$TI" "$D/grey_ramp.nrrd" "$T/fail/out.nrrd" --radius 1 2>/dev/null; then echo "grey input accepted"; exit 1; fi
 if "$TI" "$D/box_mask.nrrd" "$T/fail/out.nrrd" --radius 0 2>/dev/null; then echo "radius 0 accepted"; exit 1; fi

@@ -47,6 +47,17 @@ void add_tighten_options(CLI::App& app, TightenRun& cfg) {
                "~10% and gzip takes seconds on 256^3; off by default)");
 }
 
+namespace {
+// The warning of a run that hit the step cap; the mean move of the zero set
+// only when a whole re-distancing cycle ran.
+std::string not_converged_note(const TightenResult& r, const TightenParams& p) {
+  std::string s = "not converged after " + std::to_string(r.iterations) + " steps (last move " +
+                  std::to_string(r.last_change) + " voxels";
+  if (r.iterations >= p.reinit_every) s += ", mean over the last cycle " + std::to_string(r.cycle_change);
+  return s + "); raise --iterations";
+}
+}  // namespace
+
 void run_tighten(TightenRun& cfg, const CommonFlags& flags) {
   (void)flags;
   [[maybe_unused]] auto& in = cfg.input;
@@ -90,10 +101,13 @@ void run_tighten(TightenRun& cfg, const CommonFlags& flags) {
   const pm::TightenDefaults d = pm::tighten_defaults(input, r_given, k_given);
   p.radius = d.radius;
   p.upsample = d.upsample;
-  if (radius == "auto" || upsample == "auto")
+  if (radius == "auto" || upsample == "auto") {
+    std::string why;
+    if (radius == "auto") why = "radius from the header's largest spacing";
+    if (upsample == "auto" && p.upsample > 1) why += std::string(why.empty() ? "" : ", ") + "tiny volume upsampled";
     pm::info("radius " + std::to_string(p.radius) + " (world units), upsample " + std::to_string(p.upsample) +
-             (radius == "auto" ? " (radius from the header's largest spacing" : " (") +
-             (upsample == "auto" && p.upsample > 1 ? ", tiny volume upsampled)" : ")"));
+             (why.empty() ? "" : " (" + why + ")"));
+  }
   st["inputs"] = {in};
   st["parameters"] = {{"radius", p.radius},
                       {"upsample", p.upsample},
@@ -115,10 +129,7 @@ void run_tighten(TightenRun& cfg, const CommonFlags& flags) {
       pm::tighten_labels(labels, p, [&](int label, pm::TightenResult&& r) {
         const std::string path = out.substr(0, pct) + std::to_string(label) + out.substr(pct + 2);
         if (r.radius < r.requested_radius) pm::warn("label " + std::to_string(label) + ": " + pm::tighten_radius_note(r));
-        if (!r.converged)
-          pm::warn("label " + std::to_string(label) + ": not converged after " + std::to_string(r.iterations) +
-                   " steps (last move " + std::to_string(r.last_change) + " voxels, mean over the last cycle " +
-                   std::to_string(r.cycle_change) + "); raise --iterations");
+        if (!r.converged) pm::warn("label " + std::to_string(label) + ": " + not_converged_note(r, p));
         pm::info("label " + std::to_string(label) + ": " + std::to_string(r.iterations) + " flow steps -> " + path);
         pm::write_volume(r.distance, path, wp);
         outputs.push_back(path);
@@ -148,10 +159,7 @@ void run_tighten(TightenRun& cfg, const CommonFlags& flags) {
     pm::warn("the mask comes within R + 3 voxels of the border: padded by " + std::to_string(r.pad) +
              " voxels on every side (output origin moved)");
   if (r.radius < r.requested_radius) pm::warn(pm::tighten_radius_note(r));
-  if (!r.converged)
-    pm::warn("not converged after " + std::to_string(r.iterations) + " steps (last move " +
-             std::to_string(r.last_change) + " voxels, mean over the last cycle " + std::to_string(r.cycle_change) +
-             "); raise --iterations");
+  if (!r.converged) pm::warn(not_converged_note(r, p));
   pm::info(std::to_string(r.iterations) + " flow steps over " + std::to_string(r.mortar_nodes) + " mortar nodes");
   pm::write_volume(r.distance, out, wp);
   st["outputs"] = {out};
