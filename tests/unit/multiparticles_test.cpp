@@ -12,6 +12,7 @@
 #include "analytic_materials.h"
 #include "pm/base/error.h"
 #include "pm/base/volume.h"
+#include "pm/sample/junction_constraint.h"
 
 namespace pm {
 namespace {
@@ -104,6 +105,41 @@ TEST(MultiParticles, ThreeWedgesCurveAndSurfaces) {
 // Without curve seeds the triple line (the z axis) is left to the surfaces:
 // particles of two interfaces crowd against it from both sides. The repair
 // turns each pair closer than h/4 into one particle on the line.
+// The engine reads a junction particle's pair rules from its cached cell
+// (kKeyedPairs): for every pair of cells of four materials, fixed or not,
+// the keyed rules give what the particle-reading ones give.
+TEST(MultiParticles, KeyedPairRulesAgreeWithTheParticleRules) {
+  const MaterialSet m = test::four_tetrahedral();
+  JunctionConstraint c(m, test::cube(1.0), 1e-3);
+  std::vector<std::int32_t> ids;
+  for (int a = 0; a < 4; ++a)
+    for (int b = a + 1; b < 4; ++b) {
+      ids.push_back(c.cell_index(make_cell({a, b})));
+      for (int d = b + 1; d < 4; ++d) ids.push_back(c.cell_index(make_cell({a, b, d})));
+    }
+  ids.push_back(c.cell_index(make_cell({0, 1, 2, 3})));
+  c.finish_cells();
+  ASSERT_EQ(ids.size(), 11u);
+  int seen = 0, weighted = 0;
+  for (std::int32_t a : ids)
+    for (std::int32_t b : ids) {
+      const JunctionConstraint::Point i = c.of_cell(a), o = c.of_cell(b);
+      for (bool fixed : {false, true}) {
+        const bool s = c.sees(i, o, fixed);
+        EXPECT_EQ(c.sees_key(i, c.pair_key(o), fixed), s) << a << " " << b << " " << fixed;
+        seen += s;
+      }
+      const bool w = c.weighted(i) && c.same_cell(i, o);
+      EXPECT_EQ(c.weighted_key(i, c.pair_key(o)), w) << a << " " << b;
+      weighted += w;
+    }
+  // Each cell sees its own particles (fixed or not) and the fixed ones of
+  // the cells that bound it: a surface is bounded by 2 curves and the
+  // point, a curve by the point.
+  EXPECT_EQ(seen, 11 * 2 + 6 * 3 + 4 * 1);
+  EXPECT_EQ(weighted, 6);  // surface particles of one cell only
+}
+
 TEST(MultiParticles, JunctionRepairPutsMissedCurvesOnTheLine) {
   const MaterialSet m = test::three_wedges(0.0);
   std::vector<JunctionSeed> seeds;

@@ -200,7 +200,7 @@ void ParticleEngine<C>::take_in_reach(std::size_t count, Id id, const Vec3& x, d
       n += (q != self) & (norm2(pos_[q] - x) < r2);
     }
     for (std::uint32_t s = 0; s < n; ++s)
-      if (kCached || sees(P, parts_[sel[s]])) push_neighbour(out, P, sel[s]);
+      if (kCached || sees_index(P, sel[s])) push_neighbour(out, P, sel[s]);
   }
 }
 
@@ -415,10 +415,10 @@ void ParticleEngine<C>::rebin(bool for_lists) {
   parts_.swap(scratch_);
   binned_.resize(n);
   bin_moved_.assign(bins_.cells(), 0.0);
-  if constexpr (kCached) cands_.resize(n);
+  if constexpr (kCached || kKeyed) cands_.resize(n);
   chunked([&](std::size_t, std::size_t i) {
     pos_[i] = binned_[i] = parts_[i].p.x;
-    if constexpr (kCached) cache(i);
+    cache(i);
   });
   if (p_.fine_bins && !for_lists) build_fine();
 }

@@ -421,6 +421,15 @@ struct pair_free : std::false_type {};
 template <class C>
 struct pair_free<C, std::void_t<decltype(C::kPairFree)>> : std::integral_constant<bool, C::kPairFree> {};
 
+/// Whether constraint C declares kKeyedPairs: its pair rules depend on one
+/// integer of the other particle, pair_key(o) (e.g. a junction cell), and
+/// its fixed flag: sees(i, o, fixed) == sees_key(i, pair_key(o), fixed) and
+/// weighted(i) && same_cell(i, o) == weighted_key(i, pair_key(o)).
+template <class C, class = void>
+struct keyed_pairs : std::false_type {};
+template <class C>
+struct keyed_pairs<C, std::void_t<decltype(C::kKeyedPairs)>> : std::integral_constant<bool, C::kKeyedPairs> {};
+
 /// Distance factors for two-type quad packing (Meyer 2008, Chapter 7):
 /// like pairs sit √2 farther apart than unlike pairs (the diagonal of a
 /// checkerboard square), t(a, a) = √2, t(a, b) = 1; splits alternate the
@@ -714,6 +723,8 @@ class ParticleEngine {
     double a;
     std::uint8_t type;
     bool weighted;
+    bool fixed;         // keyed constraints: the pair rules' inputs (see keyed_pairs)
+    std::int32_t key;
   };
 
   double alpha(double ai, double aj, std::uint8_t ti, std::uint8_t tj) const {
@@ -754,25 +765,40 @@ class ParticleEngine {
   double energy_at(const Vec3& x, const Vec3& n, double a, std::uint8_t t, const std::vector<Cand>& cs, Vec3* v,
                    int* nbrs) const;
   Cand cand_of(const Particle& i, const Particle& o) const {
-    return {o.p.x, o.p.n, p_.sizing_mode ? beta_ / (scale_ * o.attr) : o.attr, o.type,
-            c_.weighted(i.p) && c_.same_cell(i.p, o.p)};
+    std::int32_t key = 0;
+    if constexpr (kKeyed) key = c_.pair_key(o.p);
+    return {o.p.x,  o.p.n, p_.sizing_mode ? beta_ / (scale_ * o.attr) : o.attr,
+            o.type, c_.weighted(i.p) && c_.same_cell(i.p, o.p), o.fixed, key};
   }
-  // Pair-free constraints: every particle's Cand, kept with parts_ from the
-  // binning on (gathers copy one cache line instead of reading the particle).
+  // Pair-free and keyed constraints: every particle's Cand, kept with parts_
+  // from the binning on (gathers copy one cache line instead of reading the
+  // particle); a keyed constraint's pair rules read the cached key.
   static constexpr bool kCached = pair_free<C>::value;
+  static constexpr bool kKeyed = !kCached && keyed_pairs<C>::value;
   void cache(std::size_t q) {
-    if constexpr (kCached) cands_[q] = cand_of(parts_[q], parts_[q]);
+    if constexpr (kCached || kKeyed) cands_[q] = cand_of(parts_[q], parts_[q]);
   }
-  // Appends q's Cand as seen from i (pair-free constraints: from the cache).
+  // Appends q's Cand as seen from i (pair-free constraints: from the cache;
+  // keyed: from the cache, weighted for the pair).
   void push_neighbour(std::vector<Cand>& out, const Particle& i, std::size_t q) const {
     if constexpr (kCached) {
       (void)i;
       out.push_back(cands_[q]);
+    } else if constexpr (kKeyed) {
+      out.push_back(cands_[q]);
+      out.back().weighted = c_.weighted_key(i.p, cands_[q].key);
     } else {
       out.push_back(cand_of(i, parts_[q]));
     }
   }
   bool sees(const Particle& i, const Particle& o) const { return c_.sees(i.p, o.p, o.fixed); }
+  // sees(i, parts_[q]), from the cache where the constraint is keyed.
+  bool sees_index(const Particle& i, std::size_t q) const {
+    if constexpr (kKeyed)
+      return c_.sees_key(i.p, cands_[q].key, cands_[q].fixed);
+    else
+      return sees(i, parts_[q]);
+  }
   void gather(const Vec3& x, double reach, std::size_t self, std::size_t cell, std::vector<Cand>& out) const;
   void gather_list(const Vec3& x, double reach, std::size_t self, std::vector<Cand>& out) const;
   // Appends the Cands of particles id(0), .., id(count - 1) within sqrt(r2)
@@ -816,7 +842,7 @@ class ParticleEngine {
   // largest in its 3x3x3 block instead of the largest spacing.
   std::vector<double> bin_moved_;
   std::vector<Vec3> binned_;
-  std::vector<Cand> cands_;  // kCached: cand_of(parts_[q], parts_[q])
+  std::vector<Cand> cands_;  // kCached or kKeyed: cand_of(parts_[q], parts_[q])
   double fine_w_ = 0;
 
   std::vector<std::uint32_t> nbr_start_, nbr_;

@@ -59,13 +59,18 @@ class JunctionConstraint {
   /// the tangent plane at angle 2πu.
   Vec3 split_offset(const Point& p, double u, double dist) const;
   int children(const Point& p, double theta, double dist, Vec3* out) const;
-  bool sees(const Point& i, const Point& o, bool o_fixed) const {
-    return o.s.cell == i.s.cell ||
-           (o_fixed && vis_[std::size_t(i.s.cell) * cells_.size() + std::size_t(o.s.cell)]);
-  }
+  bool sees(const Point& i, const Point& o, bool o_fixed) const { return sees_key(i, o.s.cell, o_fixed); }
   /// Normal weighting between particles of one surface cell only.
   bool weighted(const Point& p) const { return cell(p).count == 2; }
   bool same_cell(const Point& a, const Point& b) const { return a.s.cell == b.s.cell; }
+  /// The pair rules from the other particle's cell (the engine caches it
+  /// beside the particle's pair data: a gather reads no particle).
+  static constexpr bool kKeyedPairs = true;
+  std::int32_t pair_key(const Point& o) const { return o.s.cell; }
+  bool sees_key(const Point& i, std::int32_t o_cell, bool o_fixed) const {
+    return o_cell == i.s.cell || (o_fixed && vis_[std::size_t(i.s.cell) * cells_.size() + std::size_t(o_cell)]);
+  }
+  bool weighted_key(const Point& i, std::int32_t o_cell) const { return weighted(i) && o_cell == i.s.cell; }
   double curvedness(const Point&) const { return 0; }
 
  private:
