@@ -536,8 +536,10 @@ class DenseBins {
   }
 
  private:
+  // floor((v - lo) / w) clamped to the grid; no floor needed: below 0 and
+  // at or above the last cell clamp alike, and in between truncation is floor.
   long clamp_cell(double v, int a) const {
-    const double t = std::floor((v - lo_[a]) / w_);
+    const double t = (v - lo_[a]) / w_;
     return t < 0 ? 0 : t >= double(n_[a] - 1) ? n_[a] - 1 : long(t);
   }
   // Distance from v to cell i's slab along axis a (0 inside).
