@@ -408,6 +408,7 @@ void DenseBins::build(const std::vector<Vec3>& x, double w, std::size_t max_cell
     w *= std::max(1.01, std::cbrt(double(total) / double(max_cells)));
   }
   w_ = w;
+  inv_w_ = 1.0 / w;
   lo_ = bb.lo;
   const std::size_t cells = std::size_t(n_[0]) * std::size_t(n_[1]) * std::size_t(n_[2]);
   // Counting sort by cell: stable, so a cell lists its points by index.

@@ -527,7 +527,7 @@ class DenseBins {
         const double dy = axis_gap(x.y, iy, 1), ry = rz - dy * dy;
         if (ry < 0) continue;
         const double hw = std::sqrt(ry);
-        const long ix0 = clamp_cell(x.x - hw, 0), ix1 = clamp_cell(x.x + hw, 0);
+        const long ix0 = widened_cell(x.x - hw, -kWiden), ix1 = widened_cell(x.x + hw, kWiden);
         const std::size_t row = std::size_t(n_[0]) * (std::size_t(iy) + std::size_t(n_[1]) * std::size_t(iz));
         const std::uint32_t b = start_[row + std::size_t(ix0)], e = start_[row + std::size_t(ix1) + 1];
         if (b < e) f(order_.data() + b, order_.data() + e);
@@ -536,6 +536,15 @@ class DenseBins {
   }
 
  private:
+  // The x cell of v by a multiplication instead of clamp_cell's division,
+  // moved by `widen` cells first: with |widen| far above the rounding of
+  // either, the row's range can only grow (a superset: the same points in
+  // range, in the same order).
+  static constexpr double kWiden = 1e-6;
+  long widened_cell(double v, double widen) const {
+    const double t = (v - lo_[0]) * inv_w_ + widen;
+    return t < 0 ? 0 : t >= double(n_[0] - 1) ? n_[0] - 1 : long(t);
+  }
   // floor((v - lo) / w) clamped to the grid; no floor needed: below 0 and
   // at or above the last cell clamp alike, and in between truncation is floor.
   long clamp_cell(double v, int a) const {
@@ -550,7 +559,7 @@ class DenseBins {
   std::vector<std::uint32_t> start_, order_, cell_of_;
   long n_[3] = {0, 0, 0};
   Vec3 lo_;
-  double w_ = 1;
+  double w_ = 1, inv_w_ = 1;
 };
 
 /// The engine. C is a constraint as described above.
