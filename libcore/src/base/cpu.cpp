@@ -2,7 +2,7 @@
 
 namespace pm {
 
-#if defined(__GNUC__) && defined(__x86_64__) && !defined(PM_NO_AVX2)
+#if PM_AVX2_COPIES
 bool cpu_has_avx2() {
   static const bool has = [] {
     __builtin_cpu_init();

@@ -14,7 +14,6 @@
 
 #include <tbb/blocked_range.h>
 
-#include "pm/base/cpu.h"
 #include "pm/base/error.h"
 #include "pm/base/parallel.h"
 
@@ -23,12 +22,10 @@
 #endif
 
 // An AVX2 copy of the arithmetic, chosen at run time (the library itself is
-// built for baseline x86-64). GCC/Clang only: function target attributes.
-#if defined(__GNUC__) && defined(__x86_64__) && !defined(PM_NO_AVX2)
-#define PM_FIELD_AVX2 1
+// built for baseline x86-64; PM_AVX2_COPIES, pm/base/cpu.h).
+#include "pm/base/cpu.h"
+#if PM_AVX2_COPIES
 #include <immintrin.h>
-#else
-#define PM_FIELD_AVX2 0
 #endif
 // Streaming (non-temporal) stores for the batch sort's scatter: SSE2.
 #if defined(__SSE2__)
@@ -255,7 +252,7 @@ double accumulate(const Grid& gr, const Taps& tp, double g[3], double h[6]) {
   return f;
 }
 
-#if PM_FIELD_AVX2
+#if PM_AVX2_COPIES
 // The same sums with the four x lanes in one AVX2 register. Every lane sees
 // the operations of accumulate() in the same order (acc + w * r, no FMA), and
 // dot4 adds (w0 q0 + w1 q1) + (w2 q2 + w3 q3) as there: identical results.
@@ -636,7 +633,7 @@ struct SortPlan {
   std::uint32_t end[(std::size_t(1) << kHighBits) + 1];  // range d of the first digit ends at end[d]
 };
 
-#if PM_FIELD_AVX2
+#if PM_AVX2_COPIES
 // Index-space positions of the four points p[0..4): to_index()'s operations
 // in its order, one point per lane (the same bits): t[a] = axis a.
 struct IndexMap4 {
@@ -772,7 +769,7 @@ __attribute__((noinline)) void sort_first_digit(const Frame& fr, const Vec3* x, 
   std::fill(count, count + (std::size_t(1) << plan.high) + 1, 0u);
   std::uint32_t* key = s.key;
   std::size_t first = 0;
-#if PM_FIELD_AVX2
+#if PM_AVX2_COPIES
   if (fr.avx2 && fr.bricks < (std::size_t(1) << 31)) first = brick_keys_avx2(fr, x, n, plan.shift, low, key, count);
 #endif
   for (std::size_t i = first; i < n; ++i) {
@@ -801,7 +798,7 @@ __attribute__((noinline)) void sort_first_digit(const Frame& fr, const Vec3* x, 
   std::copy(count, count + (std::size_t(1) << plan.high), start);
   alignas(64) SortItem pending[std::size_t(1) << kHighBits];
   first = 0;
-#if PM_FIELD_AVX2 && PM_STREAM_STORES
+#if PM_AVX2_COPIES && PM_STREAM_STORES
   if (fr.avx2) first = scatter_avx2(fr, x, n, low, key, count, start, pending, b);
 #endif
   for (std::size_t i = first; i < n; ++i) {
@@ -1028,7 +1025,7 @@ __attribute__((flatten)) void eval_baseline(const Frame& fr, const Vec3* x, std:
   run_single<Order, accumulate<V, D, Order>>(fr, x, n, f, grad, hess);
 }
 
-#if PM_FIELD_AVX2
+#if PM_AVX2_COPIES
 template <KernelType V, KernelType D, int Order>
 __attribute__((target("avx2"), flatten)) void eval_avx2(const Frame& fr, const Vec3* x, std::size_t n, double* f,
                                                         Vec3* grad, Mat3* hess) {
@@ -1041,7 +1038,7 @@ void dispatch(const VolumeFieldParams& p, bool avx2, const Frame& fr, const Vec3
               double* f, Vec3* grad, Mat3* hess) {
   constexpr KernelType B = KernelType::bspline, C = KernelType::catmull_rom;
   const bool vb = p.value_kernel == B, db = p.deriv_kernel == B;
-#if PM_FIELD_AVX2
+#if PM_AVX2_COPIES
   if (avx2) {
     if (vb)
       db ? eval_avx2<B, B, Order>(fr, x, n, f, grad, hess) : eval_avx2<B, C, Order>(fr, x, n, f, grad, hess);

@@ -1,18 +1,14 @@
 #include "pm/sample/engine.h"
 
-#if defined(__GNUC__) && defined(__x86_64__) && !defined(PM_NO_AVX2)
-#define PM_ENGINE_AVX2 1
+#include "pm/base/cpu.h"
+#if PM_AVX2_COPIES
 #include <immintrin.h>
-#else
-#define PM_ENGINE_AVX2 0
 #endif
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <unordered_map>
-
-#include "pm/base/cpu.h"
 
 namespace pm {
 
@@ -31,7 +27,7 @@ void pair_terms_scalar(ParticleEnergy en, std::size_t n, const double* d2, const
   }
 }
 
-#if PM_ENGINE_AVX2
+#if PM_AVX2_COPIES
 // pair_terms_scalar for the cotangent (particle_pair_energy and cot_fast),
 // lane by lane: every operation is the scalar one (IEEE add, mul, div,
 // sqrt; no FMA in this target) in the scalar order, so every lane's bits
@@ -98,7 +94,7 @@ __attribute__((target("avx2"))) void cotangent_terms_avx2(std::size_t n, const d
 
 void particle_pair_terms(ParticleEnergy en, std::size_t n, const double* d2, const double* al, const double* w,
                          double* ew, double* fs) {
-#if PM_ENGINE_AVX2
+#if PM_AVX2_COPIES
   if (en == ParticleEnergy::cotangent && cpu_has_avx2()) {
     cotangent_terms_avx2(n, d2, al, w, ew, fs);
     return;
