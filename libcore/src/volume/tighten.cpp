@@ -85,98 +85,61 @@ std::vector<std::uint8_t> binary_mask_inside(const Volume& mask, const std::stri
 
 namespace {
 
-// The flowing band in compact form. The flow updates only the active nodes
-// and reads their 18 neighbours (faces and edges of the 3x3x3 block); over
-// the whole working box those reads miss the caches (the band is a thin
-// shell, so neighbouring rows are rarely reused). Here the active values come
-// first, then the distinct non-active neighbours (constant between
-// re-distancings), and each active node keeps its 18 references into that
-// array: the same floats, the same arithmetic, a few MB instead of the box.
+// The flowing band: the active nodes (working-box indices, ascending) and
+// the offsets of their 18 stencil neighbours (faces and edges of the 3x3x3
+// block) in flow_step's order: x+ x- y+ y- z+ z-, then the xy, xz and yz
+// edge quadruples (+ +, + -, - +, - -). The flow reads the neighbours in the
+// working box itself: the active nodes come in grid order, so the rows a
+// node reads are the ones its predecessors read (a thin shell touches few
+// lines of three slices), and no table of references has to be streamed.
 struct Band {
   static constexpr int kRefs = 18;
-  std::size_t active = 0;                 // values [0, active) flow; the rest are constants
-  std::vector<std::uint32_t> grid;        // grid index of every value (active ones first)
-  std::vector<std::uint32_t> ref;         // kRefs per active node, order as in flow_step
+  const std::vector<std::uint32_t>& active;
+  std::ptrdiff_t off[kRefs];
+  Band(const std::vector<std::uint32_t>& a, const Dims& d) : active(a) {
+    const std::ptrdiff_t sx = 1, sy = std::ptrdiff_t(d.nx), sz = std::ptrdiff_t(d.nx * d.ny);
+    const std::ptrdiff_t o[kRefs] = {sx,       -sx,      sy,       -sy,      sz,       -sz,
+                                     sx + sy,  sx - sy,  -sx + sy, -sx - sy, sx + sz,  sx - sz,
+                                     -sx + sz, -sx - sz, sy + sz,  sy - sz,  -sy + sz, -sy - sz};
+    std::copy(o, o + kRefs, off);
+  }
+  std::size_t size() const { return active.size(); }
 };
 
-// Stencil offsets in flow_step's order: x+ x- y+ y- z+ z-, then the xy, xz
-// and yz edge quadruples (+ +, + -, - +, - -).
-void stencil(const Dims& d, std::ptrdiff_t off[Band::kRefs]) {
-  const std::ptrdiff_t sx = 1, sy = std::ptrdiff_t(d.nx), sz = std::ptrdiff_t(d.nx * d.ny);
-  const std::ptrdiff_t o[Band::kRefs] = {sx,       -sx,      sy,       -sy,      sz,       -sz,
-                                         sx + sy,  sx - sy,  -sx + sy, -sx - sy, sx + sz,  sx - sz,
-                                         -sx + sz, -sx - sz, sy + sz,  sy - sz,  -sy + sz, -sy - sz};
-  std::copy(o, o + Band::kRefs, off);
-}
-
-Band make_band(const std::vector<std::uint32_t>& active, const Dims& d) {
-  Band b;
-  b.active = active.size();
-  b.grid = active;
-  std::ptrdiff_t off[Band::kRefs];
-  stencil(d, off);
-  constexpr std::uint32_t kNone = ~std::uint32_t(0);
-  std::vector<std::uint32_t> slot(d.count(), kNone);  // grid index -> band index
-  for (std::size_t t = 0; t < active.size(); ++t) slot[active[t]] = std::uint32_t(t);
-  b.ref.resize(active.size() * Band::kRefs);
-  for (std::size_t t = 0; t < active.size(); ++t)
-    for (int k = 0; k < Band::kRefs; ++k) {
-      const std::size_t c = std::size_t(std::ptrdiff_t(active[t]) + off[k]);
-      if (slot[c] == kNone) {
-        slot[c] = std::uint32_t(b.grid.size());
-        b.grid.push_back(std::uint32_t(c));
-      }
-      b.ref[t * Band::kRefs + std::size_t(k)] = slot[c];
-    }
-  return b;
-}
-
-// Band values from the grid (all of them) and back (active ones).
-void band_gather(const Band& b, const std::vector<float>& phi, std::vector<float>& v) {
-  v.resize(b.grid.size());
-  pm::parallel_for(tbb::blocked_range<std::size_t>(0, b.grid.size(), 4096),
-                    [&](const tbb::blocked_range<std::size_t>& r) {
-                      for (std::size_t u = r.begin(); u != r.end(); ++u) v[u] = phi[b.grid[u]];
-                    });
-}
-void band_scatter(const Band& b, const std::vector<float>& v, std::vector<float>& phi) {
-  pm::parallel_for(tbb::blocked_range<std::size_t>(0, b.active, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t t = r.begin(); t != r.end(); ++t) phi[b.grid[t]] = v[t];
-  });
-}
-
 // One explicit step of level-set mean-curvature flow phi_t = kappa |grad phi|
-// at the active nodes (Jacobi: reads `cur`, writes `next`, both band arrays),
-// clamped between the fillet and round distances lo[t], hi[t]. Returns the
-// largest move of a node next to the zero set (a face neighbour across it)
-// within `near` of it.
+// at the active nodes (Jacobi: reads `cur`, writes `next`, both working-box
+// arrays that agree off the active nodes), clamped between the fillet and
+// round distances lo[t], hi[t]. Returns the largest move of a node next to
+// the zero set (a face neighbour across it) within `near` of it.
 double flow_step(const Band& band, const std::vector<float>& cur, std::vector<float>& next,
                  const std::vector<float>& lo, const std::vector<float>& hi, const double h[3], double dt,
                  double near) {
   const double ix = 1 / h[0], iy = 1 / h[1], iz = 1 / h[2];
-  const std::size_t n = band.active;
+  const std::size_t n = band.size();
   const std::size_t chunks = std::max<std::size_t>(1, n / 4096 + 1);
   std::vector<double> moved(chunks, 0.0);
+  const std::ptrdiff_t* o = band.off;
   pm::parallel_for(std::size_t(0), chunks, [&](std::size_t ch) {
     const std::size_t b = n * ch / chunks, e = n * (ch + 1) / chunks;
     double m = 0;
     for (std::size_t t = b; t < e; ++t) {
-      const std::uint32_t* r = &band.ref[t * Band::kRefs];
-      const double f = cur[t];
-      const double fxp = cur[r[0]], fxm = cur[r[1]], fyp = cur[r[2]], fym = cur[r[3]];
-      const double fzp = cur[r[4]], fzm = cur[r[5]];
+      const std::size_t c = band.active[t];
+      const float* r = cur.data() + c;
+      const double f = r[0];
+      const double fxp = r[o[0]], fxm = r[o[1]], fyp = r[o[2]], fym = r[o[3]];
+      const double fzp = r[o[4]], fzm = r[o[5]];
       const double px = 0.5 * (fxp - fxm) * ix, py = 0.5 * (fyp - fym) * iy, pz = 0.5 * (fzp - fzm) * iz;
       const double pxx = (fxp - 2 * f + fxm) * ix * ix, pyy = (fyp - 2 * f + fym) * iy * iy,
                    pzz = (fzp - 2 * f + fzm) * iz * iz;
-      const double pxy = 0.25 * (cur[r[6]] - cur[r[7]] - cur[r[8]] + cur[r[9]]) * ix * iy;
-      const double pxz = 0.25 * (cur[r[10]] - cur[r[11]] - cur[r[12]] + cur[r[13]]) * ix * iz;
-      const double pyz = 0.25 * (cur[r[14]] - cur[r[15]] - cur[r[16]] + cur[r[17]]) * iy * iz;
+      const double pxy = 0.25 * (r[o[6]] - r[o[7]] - r[o[8]] + r[o[9]]) * ix * iy;
+      const double pxz = 0.25 * (r[o[10]] - r[o[11]] - r[o[12]] + r[o[13]]) * ix * iz;
+      const double pyz = 0.25 * (r[o[14]] - r[o[15]] - r[o[16]] + r[o[17]]) * iy * iz;
       const double gx2 = px * px, gy2 = py * py, gz2 = pz * pz, g2 = gx2 + gy2 + gz2;
       const double num = pxx * (gy2 + gz2) + pyy * (gx2 + gz2) + pzz * (gx2 + gy2) -
                          2 * (px * py * pxy + px * pz * pxz + py * pz * pyz);
       double v = f + dt * num / (g2 + 1e-12);
       v = std::min(std::max(v, double(lo[t])), double(hi[t]));
-      next[t] = float(v);
+      next[c] = float(v);
       // Motion of the zero set: only at nodes with a face neighbour across it.
       const bool neg = f < 0;
       if (std::fabs(f) < near && ((fxp < 0) != neg || (fxm < 0) != neg || (fyp < 0) != neg || (fym < 0) != neg ||
@@ -190,10 +153,10 @@ double flow_step(const Band& band, const std::vector<float>& cur, std::vector<fl
 
 // Whether active node t has a face neighbour across the zero set of v.
 inline bool next_to_zero_set(const Band& band, const std::vector<float>& v, std::size_t t) {
-  const std::uint32_t* r = &band.ref[t * Band::kRefs];
-  const bool neg = v[t] < 0;
+  const float* r = v.data() + band.active[t];
+  const bool neg = r[0] < 0;
   bool across = false;
-  for (int k = 0; k < 6; ++k) across |= (v[r[k]] < 0) != neg;
+  for (int k = 0; k < 6; ++k) across |= (r[band.off[k]] < 0) != neg;
   return across;
 }
 
@@ -203,17 +166,18 @@ constexpr double kReinitDefect = 0.5;
 // Largest deviation of |grad phi| from 1 (central differences, world units)
 // over the active nodes next to the zero set (a face neighbour across it).
 double gradient_defect(const Band& band, const std::vector<float>& cur, const double h[3]) {
-  const std::size_t n = band.active;
+  const std::size_t n = band.size();
   const std::size_t chunks = std::max<std::size_t>(1, n / 4096 + 1);
   std::vector<double> worst(chunks, 0.0);
   pm::parallel_for(std::size_t(0), chunks, [&](std::size_t ch) {
     double w = 0;
     for (std::size_t t = n * ch / chunks, e = n * (ch + 1) / chunks; t < e; ++t) {
       if (!next_to_zero_set(band, cur, t)) continue;
-      const std::uint32_t* r = &band.ref[t * Band::kRefs];
-      const double px = (double(cur[r[0]]) - cur[r[1]]) / (2 * h[0]);
-      const double py = (double(cur[r[2]]) - cur[r[3]]) / (2 * h[1]);
-      const double pz = (double(cur[r[4]]) - cur[r[5]]) / (2 * h[2]);
+      const float* r = cur.data() + band.active[t];
+      const std::ptrdiff_t* o = band.off;
+      const double px = (double(r[o[0]]) - r[o[1]]) / (2 * h[0]);
+      const double py = (double(r[o[2]]) - r[o[3]]) / (2 * h[1]);
+      const double pz = (double(r[o[4]]) - r[o[5]]) / (2 * h[2]);
       w = std::max(w, std::fabs(std::sqrt(px * px + py * py + pz * pz) - 1));
     }
     worst[ch] = w;
@@ -222,17 +186,18 @@ double gradient_defect(const Band& band, const std::vector<float>& cur, const do
 }
 
 // Mean change of the active nodes next to the zero set (a face neighbour
-// across it) from `before` to `cur`, in units of h (0 when there are none).
+// across it) from `before` (active node t's value at [t]) to `cur` (the
+// working box), in units of h (0 when there are none).
 double zero_set_mean_move(const Band& band, const std::vector<float>& cur, const std::vector<float>& before,
                           double h) {
-  const std::size_t n = band.active;
+  const std::size_t n = band.size();
   const std::size_t chunks = std::max<std::size_t>(1, n / 4096 + 1);
   std::vector<double> sum(chunks, 0.0), cnt(chunks, 0.0);
   pm::parallel_for(std::size_t(0), chunks, [&](std::size_t ch) {
     double s = 0, c = 0;
     for (std::size_t t = n * ch / chunks, e = n * (ch + 1) / chunks; t < e; ++t) {
       if (!next_to_zero_set(band, cur, t)) continue;
-      s += std::fabs(double(cur[t]) - double(before[t]));
+      s += std::fabs(double(cur[band.active[t]]) - double(before[t]));
       c += 1;
     }
     sum[ch] = s;
@@ -478,18 +443,16 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
   res.mortar_nodes = active.size();
 
   stage.emplace("tighten.flow");
-  // Clamped mean-curvature flow. `phi` and `next` agree off the active nodes,
-  // so a step writes `next` at the active nodes and swaps the two.
+  // Clamped mean-curvature flow on the working box. `phi` and `next` agree
+  // off the active nodes, so a step writes `next` at the active nodes and
+  // swaps the two.
   std::vector<float> lo_a(active.size()), hi_a(active.size());
   pm::parallel_for(std::size_t(0), active.size(), [&](std::size_t t) {
     lo_a[t] = dF[active[t]];
     hi_a[t] = dR[active[t]];
   });
-  std::vector<float> phi = dS;
-  const Band band = make_band(active, wd);
-  std::vector<float> cur, next;
-  band_gather(band, phi, cur);
-  next = cur;
+  std::vector<float> phi = std::move(dS), next = phi;
+  const Band band(active, wd);
   const double dt = 0.45 / (1 / (h[0] * h[0]) + 1 / (h[1] * h[1]) + 1 / (h[2] * h[2]));
   const int max_it = p.max_iterations > 0 ? p.max_iterations : int(20 * (r / hmin) * (r / hmin)) + 160;
   DistanceParams reinit;
@@ -500,11 +463,15 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
   // the zero set as a whole converges geometrically; it has converged when
   // its mean move over a whole cycle is below kTightenCycleShare of the
   // tolerance.
-  std::vector<float> cycle_start(cur.begin(), cur.begin() + long(band.active));
+  std::vector<float> cycle_start(active.size());
+  auto take_cycle_start = [&] {
+    pm::parallel_for(std::size_t(0), active.size(), [&](std::size_t t) { cycle_start[t] = phi[active[t]]; });
+  };
+  take_cycle_start();
   for (int it = 1; it <= max_it && !active.empty(); ++it) {
     check_cancelled();
-    const double moved = flow_step(band, cur, next, lo_a, hi_a, h, dt, 1.5 * hmax);
-    cur.swap(next);
+    const double moved = flow_step(band, phi, next, lo_a, hi_a, h, dt, 1.5 * hmax);
+    phi.swap(next);
     res.iterations = it;
     res.last_change = moved / hmin;
     const bool after_reinit = it > 1 && (it - 1) % p.reinit_every == 0;  // the first step relaxes the new field
@@ -513,12 +480,12 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
       break;
     }
     if (it % p.reinit_every == 0) {
-      res.cycle_change = zero_set_mean_move(band, cur, cycle_start, hmin);
+      res.cycle_change = zero_set_mean_move(band, phi, cycle_start, hmin);
       if (res.cycle_change < kTightenCycleShare * p.tolerance) {
         res.converged = true;
         break;
       }
-      std::copy_n(cur.begin(), band.active, cycle_start.begin());
+      take_cycle_start();
     }
     // Re-distance only while the zero set still moves (near convergence it
     // would only perturb the flow) and only when the field has drifted from a
@@ -526,9 +493,8 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
     // distances keeps it close to one in most cases, and each re-distancing
     // costs a transform of the working box.
     if (it % p.reinit_every == 0 && res.last_change > 10 * p.tolerance &&
-        gradient_defect(band, cur, h) > kReinitDefect) {
+        gradient_defect(band, phi, h) > kReinitDefect) {
       ++res.reinits;
-      band_scatter(band, cur, phi);
       // Re-distance away from the zero set; nodes next to it keep their values
       // so the zero set does not move.
       const auto t0 = std::chrono::steady_clock::now();
@@ -546,16 +512,13 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
       });
       phi.swap(d);
       for (std::size_t c : active) phi[c] = std::min(std::max(phi[c], dF[c]), dR[c]);
-      band_gather(band, phi, cur);
-      next = cur;
+      std::copy(phi.begin(), phi.end(), next.begin());
     }
   }
-  if (!active.empty()) band_scatter(band, cur, phi);
   if (active.empty()) res.converged = true;
   res.radius = r;
   res.requested_radius = p.radius;
 
-  std::vector<float>().swap(cur);
   std::vector<float>().swap(next);
   redistance(phi);
   if (p.keep_mortar) {
