@@ -7,7 +7,7 @@
 namespace pm {
 
 JunctionConstraint::JunctionConstraint(const MaterialSet& m, const Box& domain, double tolerance)
-    : m_(m), domain_(domain), tol_(tolerance) {}
+    : m_(m), domain_(domain), tol_(tolerance), bounds_(material_bounds(m)) {}
 
 std::int32_t JunctionConstraint::cell_index(const JunctionCell& c) {
   auto it = ids_.find(c);
@@ -32,6 +32,7 @@ bool JunctionConstraint::place(const Vec3& x, const Point& like, int steps, doub
   pp.max_steps = steps;
   pp.tolerance = tol_;
   pp.max_step = max_step;
+  pp.bounds = &bounds_;
   const CellProjection r = project_to_cell(m_, cells_[std::size_t(like.s.cell)], x, pp);
   pr.evaluations += r.evaluations;
   if (!is_finite(r.x)) return pr.fail(ProjectFailure::non_finite);
