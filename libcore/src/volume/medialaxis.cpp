@@ -108,7 +108,9 @@ MedialAxisResult medial_axis(const Volume& sdf, const MedialAxisParams& p) {
     Mat3 H;
     double s = f, res = 1e300;
     for (int it = 0; it <= p.foot_iterations; ++it) {
-      const double fp = field.evaluate(pt, gr, H);
+      // The last iteration only measures the residual: no Hessian (the value
+      // and gradient are the same either way).
+      const double fp = it == p.foot_iterations ? field.value_gradient(pt, gr) : field.evaluate(pt, gr, H);
       const double gl = norm(gr);
       if (!(gl > 0.5)) return r;
       nn = gr / gl;
