@@ -9,7 +9,6 @@
 #include <limits>
 #include <numeric>
 #include <sstream>
-#include <unordered_map>
 
 #include "pm/base/atomic_file.h"
 #include "pm/base/error.h"
@@ -239,11 +238,12 @@ Mesh collect_faces(const TetMesh& tm, int outside_label, const std::function<int
                    bool with_labels) {
   Mesh m;
   std::vector<int> remap(tm.points.size(), -1);
+  std::vector<double>& index = m.vertex_scalars["index"];
   auto vid = [&](int p) {
     if (remap[p] < 0) {
       remap[p] = int(m.vertices.size());
       m.vertices.push_back(tm.points[p]);
-      m.vertex_scalars["index"].push_back(double(p));
+      index.push_back(double(p));
     }
     return remap[p];
   };
@@ -289,21 +289,35 @@ Mesh material_surface(const TetMesh& tm, int label, int outside_label) {
       tm, outside_label, [label](int l, int ln) { return l == label ? 1 : (ln == label ? -1 : 0); }, false);
 }
 
+VertexTets::VertexTets(const TetMesh& tm) : start(tm.points.size() + 1, 0) {
+  for (const auto& t : tm.tets)
+    for (int v : t) ++start[std::size_t(v) + 1];
+  for (std::size_t v = 0; v < tm.points.size(); ++v) start[v + 1] += start[v];
+  tets.resize(start.back());
+  std::vector<int> at(start.begin(), start.end() - 1);
+  for (std::size_t i = 0; i < tm.tets.size(); ++i)
+    for (int v : tm.tets[i]) tets[std::size_t(at[std::size_t(v)]++)] = int(i);
+}
+
 namespace {
 struct ManifoldChecker {
   const TetMesh& tm;
   int label, outside;
-  std::vector<std::vector<int>> vt;  // vertex -> incident tets
+  VertexTets vt;
+  // Scratch of ok(): the link edges, the link vertices and their two
+  // neighbours (the link of a vertex is small: tens of edges).
+  mutable std::vector<std::pair<int, int>> edges;
+  mutable std::vector<int> verts;
+  mutable std::vector<std::array<int, 3>> adj;  // neighbour, neighbour, degree
 
-  ManifoldChecker(const TetMesh& t, int l, int o) : tm(t), label(l), outside(o), vt(t.points.size()) {
-    for (std::size_t i = 0; i < tm.tets.size(); ++i)
-      for (int v : tm.tets[i]) vt[v].push_back(int(i));
-  }
+  ManifoldChecker(const TetMesh& t, int l, int o) : tm(t), label(l), outside(o), vt(t) {}
   bool member(int t) const { return t >= 0 && tm.labels[t] == label; }
-  // True when the material's faces at v form one closed fan (or none).
+  // True when the material's faces at v form one closed fan (or none): every
+  // vertex of its link has two link edges, and the link is one cycle.
   bool ok(int v) const {
-    std::vector<std::pair<int, int>> edges;  // the two other vertices of each face at v
-    for (int t : vt[v]) {
+    edges.clear();  // the two other vertices of each face at v
+    for (const int* it = vt.begin(v); it != vt.end(v); ++it) {
+      const int t = *it;
       if (!member(t)) continue;
       const auto& tv = tm.tets[t];
       for (int i = 0; i < 4; ++i) {
@@ -319,19 +333,31 @@ struct ManifoldChecker {
       }
     }
     if (edges.empty()) return true;
-    std::unordered_map<int, std::vector<int>> adj;
+    verts.clear();
+    adj.clear();
+    auto slot = [&](int w) {
+      for (std::size_t k = 0; k < verts.size(); ++k)
+        if (verts[k] == w) return k;
+      verts.push_back(w);
+      adj.push_back({-1, -1, 0});
+      return verts.size() - 1;
+    };
     for (const auto& [a, b] : edges) {
-      adj[a].push_back(b);
-      adj[b].push_back(a);
+      const std::size_t sa = slot(a), sb = slot(b);
+      for (auto [s, o] : {std::pair<std::size_t, int>{sa, int(sb)}, {sb, int(sa)}}) {
+        std::array<int, 3>& n = adj[s];
+        if (n[2] < 2) n[std::size_t(n[2])] = o;
+        ++n[2];
+      }
     }
-    for (const auto& [w, n] : adj)
-      if (n.size() != 2) return false;
+    for (const auto& n : adj)
+      if (n[2] != 2) return false;
     // One cycle: walk it.
     std::size_t steps = 0;
-    int prev = -1, cur = edges[0].first;
+    int prev = -1, cur = int(slot(edges[0].first));
     const int start = cur;
     do {
-      const auto& n = adj[cur];
+      const auto& n = adj[std::size_t(cur)];
       const int next = n[0] != prev ? n[0] : n[1];
       prev = cur;
       cur = next;
@@ -370,12 +396,13 @@ std::size_t make_manifold(TetMesh& tm, int label, int outside_label) {
   for (int round = 0; round < 4; ++round) {
     std::vector<int> bad;
     for (std::size_t v = 0; v < tm.points.size(); ++v)
-      if (!mc.vt[v].empty() && !mc.ok(int(v))) bad.push_back(int(v));
+      if (!mc.vt.empty(int(v)) && !mc.ok(int(v))) bad.push_back(int(v));
     if (bad.empty()) break;
     for (int v : bad) {
       if (mc.ok(v)) continue;
       bool fixed = false;
-      for (int t : mc.vt[v]) {
+      for (const int* it = mc.vt.begin(v); it != mc.vt.end(v); ++it) {
+        const int t = *it;
         const int old = tm.labels[t];
         tm.labels[t] = old == label ? other_label(tm, t, label, outside_label) : label;
         if (mc.ok_around(t)) {
@@ -386,8 +413,8 @@ std::size_t make_manifold(TetMesh& tm, int label, int outside_label) {
         tm.labels[t] = old;
       }
       if (fixed) continue;
-      for (int t : mc.vt[v])
-        if (tm.labels[t] != label) {
+      for (const int* it = mc.vt.begin(v); it != mc.vt.end(v); ++it)
+        if (const int t = *it; tm.labels[t] != label) {
           tm.labels[t] = label;
           ++flips;
         }

@@ -1,6 +1,8 @@
 #include "pm/mesh/tetlabel_materials.h"
 
 #include <algorithm>
+#include <cstdint>
+#include <map>
 #include <set>
 
 #include "pm/base/error.h"
@@ -35,44 +37,67 @@ std::size_t fill_pinches(TetMesh& tm, int label, int outside) {
   if (m.faces.empty()) return 0;
   const auto& idx = m.vertex_scalars.at("index");
   auto pid = [&](int v) { return int(idx[std::size_t(v)]); };
-  // Pinched edges: more than two faces.
-  std::map<std::pair<int, int>, int> edge_faces;
-  std::vector<std::vector<std::pair<int, int>>> link(m.vertices.size());  // vertex -> opposite edges
+  const std::size_t nv = m.vertices.size();
+  // Pinched edges: more than two faces, in (smaller, larger) vertex order.
+  std::vector<std::uint64_t> edge_keys;
+  edge_keys.reserve(3 * m.faces.size());
+  // Link of every vertex (the opposite edge of each face at it), in face order.
+  std::vector<std::uint32_t> link_start(nv + 1, 0);
   for (const auto& f : m.faces)
     for (int e = 0; e < 3; ++e) {
-      const int a = f[e], b = f[(e + 1) % 3], c = f[(e + 2) % 3];
-      ++edge_faces[{std::min(a, b), std::max(a, b)}];
-      link[a].emplace_back(b, c);
+      const int a = f[e], b = f[(e + 1) % 3];
+      edge_keys.push_back(std::uint64_t(std::min(a, b)) << 32 | std::uint32_t(std::max(a, b)));
+      ++link_start[std::size_t(a) + 1];
     }
+  std::sort(edge_keys.begin(), edge_keys.end());
   std::vector<std::vector<int>> sites;  // point ids whose common tetrahedra get relabelled
-  for (const auto& [e, n] : edge_faces)
-    if (n > 2) sites.push_back({pid(e.first), pid(e.second)});
-  // Pinched vertices: the link edges do not form one connected cycle.
-  for (std::size_t v = 0; v < link.size(); ++v) {
-    if (link[v].empty()) continue;
-    std::map<int, std::vector<int>> adj;
-    for (const auto& [a, b] : link[v]) {
-      adj[a].push_back(b);
-      adj[b].push_back(a);
+  for (std::size_t k = 0; k < edge_keys.size();) {
+    std::size_t e = k + 1;
+    while (e < edge_keys.size() && edge_keys[e] == edge_keys[k]) ++e;
+    if (e - k > 2) sites.push_back({pid(int(edge_keys[k] >> 32)), pid(int(edge_keys[k] & 0xffffffffu))});
+    k = e;
+  }
+  for (std::size_t v = 0; v < nv; ++v) link_start[v + 1] += link_start[v];
+  std::vector<std::pair<int, int>> link(link_start[nv]);
+  {
+    std::vector<std::uint32_t> at(link_start.begin(), link_start.end() - 1);
+    for (const auto& f : m.faces)
+      for (int e = 0; e < 3; ++e) link[at[std::size_t(f[e])]++] = {f[(e + 1) % 3], f[(e + 2) % 3]};
+  }
+  // Pinched vertices: the link edges do not form one connected graph.
+  std::vector<int> node, parent;  // the link's vertices; union-find over them
+  for (std::size_t v = 0; v < nv; ++v) {
+    const std::uint32_t b = link_start[v], e = link_start[v + 1];
+    if (b == e) continue;
+    node.clear();
+    parent.clear();
+    auto find = [&](int w) {
+      std::size_t s = 0;
+      while (s < node.size() && node[s] != w) ++s;
+      if (s == node.size()) {
+        node.push_back(w);
+        parent.push_back(int(s));
+      }
+      int r = int(s);
+      while (parent[std::size_t(r)] != r) r = parent[std::size_t(r)];
+      return r;
+    };
+    for (std::uint32_t k = b; k < e; ++k) {
+      const int ra = find(link[k].first), rb = find(link[k].second);
+      if (ra != rb) parent[std::size_t(std::max(ra, rb))] = std::min(ra, rb);
     }
-    std::set<int> seen{adj.begin()->first};
-    std::vector<int> stack{adj.begin()->first};
-    while (!stack.empty()) {
-      const int x = stack.back();
-      stack.pop_back();
-      for (int y : adj[x])
-        if (seen.insert(y).second) stack.push_back(y);
-    }
-    if (seen.size() != adj.size()) sites.push_back({pid(int(v))});
+    std::size_t roots = 0;
+    for (std::size_t s = 0; s < node.size(); ++s) roots += parent[s] == int(s);
+    if (roots != 1) sites.push_back({pid(int(v))});
   }
   if (sites.empty()) return 0;
-  std::vector<std::vector<int>> vt(tm.points.size());
-  for (std::size_t t = 0; t < tm.tets.size(); ++t)
-    for (int v : tm.tets[t]) vt[std::size_t(v)].push_back(int(t));
+  const VertexTets vt(tm);
   std::size_t changed = 0;
+  std::vector<int> around;
   for (const auto& site : sites) {
-    std::vector<int> around;
-    for (int t : vt[std::size_t(site[0])]) {
+    around.clear();
+    for (const int* it = vt.begin(site[0]); it != vt.end(site[0]); ++it) {
+      const int t = *it;
       bool all = true;
       for (std::size_t i = 1; i < site.size(); ++i) {
         const auto& tv = tm.tets[std::size_t(t)];

@@ -69,6 +69,16 @@ struct TetLabelStats {
 /// Label every tetrahedron by `label` at its circumcentre (centroid for flat ones).
 TetLabelStats label_tets(TetMesh& tm, const LabelFunction& label, const TetLabelParams& p = {});
 
+/// The tetrahedra around every vertex, in ascending order (CSR: those of
+/// vertex v are tets[start[v] .. start[v + 1])).
+struct VertexTets {
+  std::vector<int> start, tets;
+  explicit VertexTets(const TetMesh& tm);
+  const int* begin(int v) const { return tets.data() + start[std::size_t(v)]; }
+  const int* end(int v) const { return tets.data() + start[std::size_t(v) + 1]; }
+  bool empty(int v) const { return start[std::size_t(v)] == start[std::size_t(v) + 1]; }
+};
+
 /// Make the surface of material `label` a manifold: at every vertex where its
 /// faces form more than one fan or an edge has more than two faces (a pinch
 /// where the surface nearly touches itself, e.g. across a thin gap), relabel
