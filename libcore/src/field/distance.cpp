@@ -3,9 +3,14 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "pm/base/cpu.h"
+
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #include <xmmintrin.h>
+#endif
+#if PM_AVX2_COPIES
+#include <immintrin.h>
 #endif
 
 #include <algorithm>
@@ -75,6 +80,42 @@ void envelope_1d(Line& L, std::size_t n, double h) {
   }
 }
 
+// envelope_1d for the first pass, whose values are 0 at the sites (band[i]
+// >= 0) and infinite elsewhere, straight into the outputs: the parabolas of
+// consecutive sites p < q meet at s, computed as envelope_1d computes it,
+// and node x takes q when s < x, as there (no parabola of such a row is ever
+// popped). The same floats and sites as envelope_1d.
+void envelope_sites(const std::int32_t* band, std::size_t n, double h, std::size_t base, float* out_f,
+                    std::int32_t* out_site) {
+  const double hh = h * h;
+  std::size_t p = 0;
+  while (p < n && band[p] < 0) ++p;
+  if (p == n) {
+    std::fill(out_f, out_f + n, std::numeric_limits<float>::infinity());
+    std::fill(out_site, out_site + n, -1);
+    return;
+  }
+  auto put = [&](std::size_t x, std::size_t q) {
+    const double dx = h * (double(x) - double(q));
+    out_f[x] = float(0.0 + dx * dx);
+    out_site[x] = std::int32_t(base + q);
+  };
+  std::size_t x = 0;
+  for (; x < p; ++x) put(x, p);
+  for (;;) {
+    std::size_t q = p + 1;
+    while (q < n && band[q] < 0) ++q;
+    if (q == n) {
+      for (; x < n; ++x) put(x, p);
+      return;
+    }
+    const double fq = 0.0 + hh * double(q) * double(q);
+    const double sp = (fq - (0.0 + hh * double(p) * double(p))) / (2.0 * hh * (double(q) - double(p)));
+    for (; x < q; ++x) put(x, sp < double(x) ? q : p);
+    p = q;
+  }
+}
+
 void check_orthogonal(const Geometry& g, const char* who) {
   for (int a = 0; a < 3; ++a)
     for (int b = a + 1; b < 3; ++b) {
@@ -103,8 +144,10 @@ namespace {
 // lateral part beyond the disc's radius rho; a disc without a normal (m = 0)
 // is a point. Slots n .. up to the next multiple of four are computed too
 // (from whatever they hold) and ignored by the caller.
-void disc_d2_x4(const float (&p)[3][28], const float (&m)[3][28], int n, const double x[3], float rho,
-                float (&out)[28]) {
+constexpr int kCandSlots = 32;  // 27 candidates, rounded up to a multiple of 8
+
+void disc_d2_x4(const float (&p)[3][kCandSlots], const float (&m)[3][kCandSlots], int n, const double x[3],
+                float rho, float (&out)[kCandSlots]) {
 #if !defined(__SSE2__)
   for (int q = 0; q < n; ++q) {  // the same formula, one disc at a time
     const float v0 = float(double(p[0][q]) - x[0]), v1 = float(double(p[1][q]) - x[1]),
@@ -142,6 +185,41 @@ void disc_d2_x4(const float (&p)[3][28], const float (&m)[3][28], int n, const d
   }
 #endif
 }
+
+#if PM_AVX2_COPIES
+// The same, eight at a time (AVX2, chosen at run time): the same IEEE
+// operations in the same order on every lane (no FMA), so the same floats as
+// disc_d2_x4.
+// float(double(v[i]) - c) for eight v.
+__attribute__((target("avx2"))) inline __m256 sub_x8(const float* v, __m256d c) {
+  const __m128 lo = _mm256_cvtpd_ps(_mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(v)), c));
+  const __m128 hi = _mm256_cvtpd_ps(_mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(v + 4)), c));
+  return _mm256_insertf128_ps(_mm256_castps128_ps256(lo), hi, 1);
+}
+
+__attribute__((target("avx2"))) void disc_d2_x8(const float (&p)[3][kCandSlots], const float (&m)[3][kCandSlots],
+                                                int n, const double x[3], float rho, float (&out)[kCandSlots]) {
+  const __m256d x0 = _mm256_set1_pd(x[0]), x1 = _mm256_set1_pd(x[1]), x2 = _mm256_set1_pd(x[2]);
+  const __m256 zero = _mm256_setzero_ps(), r = _mm256_set1_ps(rho), r2 = _mm256_set1_ps(rho * rho);
+  for (int q = 0; q < n; q += 8) {
+    const __m256 v0 = sub_x8(p[0] + q, x0), v1 = sub_x8(p[1] + q, x1), v2 = sub_x8(p[2] + q, x2);
+    const __m256 m0 = _mm256_load_ps(m[0] + q), m1 = _mm256_load_ps(m[1] + q), m2 = _mm256_load_ps(m[2] + q);
+    const __m256 vv =
+        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(v0, v0), _mm256_mul_ps(v1, v1)), _mm256_mul_ps(v2, v2));
+    const __m256 a =
+        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(v0, m0), _mm256_mul_ps(v1, m1)), _mm256_mul_ps(v2, m2));
+    const __m256 aa = _mm256_mul_ps(a, a);
+    const __m256 lat2 = _mm256_max_ps(_mm256_sub_ps(vv, aa), zero);
+    const __m256 lat = _mm256_sub_ps(_mm256_sqrt_ps(lat2), r);
+    const __m256 in = _mm256_cmp_ps(lat2, r2, _CMP_LE_OQ);
+    const __m256 d2 = _mm256_blendv_ps(_mm256_add_ps(aa, _mm256_mul_ps(lat, lat)), aa, in);
+    const __m256 point = _mm256_and_ps(_mm256_and_ps(_mm256_cmp_ps(m0, zero, _CMP_EQ_OQ),
+                                                     _mm256_cmp_ps(m1, zero, _CMP_EQ_OQ)),
+                                       _mm256_cmp_ps(m2, zero, _CMP_EQ_OQ));
+    _mm256_store_ps(out + q, _mm256_blendv_ps(d2, vv, point));
+  }
+}
+#endif
 
 }  // namespace
 
@@ -294,14 +372,7 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
     for (std::size_t k = r.begin(); k != r.end(); ++k) {
       for (std::size_t j = 0; j < ny; ++j) {
         const std::size_t base = nx * j + nxy * k;
-        for (std::size_t i = 0; i < nx; ++i) {
-          const bool s = band[base + i] >= 0;
-          L.f[i] = s ? 0.0 : kInf;
-          L.site[i] = s ? std::int32_t(base + i) : -1;
-        }
-        envelope_1d(L, nx, h[0]);
-        std::copy(L.out_f.begin(), L.out_f.begin() + long(nx), sq.begin() + long(base));
-        std::copy(L.out_site.begin(), L.out_site.begin() + long(nx), site.begin() + long(base));
+        envelope_sites(band.data() + base, nx, h[0], base, sq.data() + base, site.data() + base);
       }
       for (std::size_t i = 0; i < nx; ++i) {
         const std::size_t base = i + nxy * k;
@@ -388,8 +459,12 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
     return double(aa + lat * lat);
   };
   auto disc_d2 = [&](const double x[3], std::int32_t b) { return disc_d2_below(x, b, kInf); };
+  // Rows holding a node within the accurate band: the others take no part
+  // in the propagation (step 4).
+  std::vector<std::uint8_t> row_near(ny * nz, 0);
   // Neighbouring nodes mostly share their nearest band node, so each row
   // keeps the candidate discs of the last (band node, side) pair it used.
+  const bool avx2 = cpu_has_avx2();
   pm::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
     std::int32_t cand[27];
     int ncand = 0;
@@ -400,8 +475,8 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
     // vectorises; the first strict minimum is the one the scalar search
     // with its early exits found (an exit only skips a disc that cannot be
     // nearer), the same float operations in the same order.
-    alignas(32) float cp[3][28] = {}, cm[3][28] = {};
-    alignas(32) float cd2[28];
+    alignas(32) float cp[3][kCandSlots] = {}, cm[3][kCandSlots] = {};
+    alignas(32) float cd2[kCandSlots];
     for (std::size_t j = 0; j < ny; ++j)
       for (std::size_t i = 0; i < nx; ++i) {
         const std::size_t c = i + nx * j + nxy * k;
@@ -413,6 +488,7 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
           site[c] = -1 - arg;
           continue;
         }
+        row_near[j + ny * k] = 1;
         const bool side = below(c);
         if (s != cached_site || side != cached_side) {
           cached_site = s;
@@ -435,7 +511,12 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
             }
           }
         }
-        disc_d2_x4(cp, cm, ncand, x, rhof, cd2);
+#if PM_AVX2_COPIES
+        if (avx2)
+          disc_d2_x8(cp, cm, ncand, x, rhof, cd2);
+        else
+#endif
+          disc_d2_x4(cp, cm, ncand, x, rhof, cd2);
         float best = std::numeric_limits<float>::infinity();  // the first strict minimum, without a branch
         for (int q = 0; q < ncand; ++q) {
           const bool lt = cd2[q] < best;
@@ -453,7 +534,8 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
   //    disc is nearest (far from a tilted surface).
   //    Lines along x run one after the other; lines along y and z are swept
   //    a whole x-row at a time (each line still forward, then backward), so
-  //    memory is read in contiguous rows.
+  //    memory is read in contiguous rows. Nodes beyond the accurate band
+  //    neither give nor take: rows without a node within it are skipped.
   auto relax = [&](std::size_t c, std::size_t from, const double x[3]) {
     const std::int32_t b = site[from];
     if (b == site[c] || b < 0 || site[c] < 0) return;
@@ -465,6 +547,7 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
   };
   pm::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
     for (std::size_t j = 0; j < ny; ++j) {
+      if (!row_near[j + ny * k]) continue;
       const std::size_t base = nx * j + nxy * k;
       double x[3] = {0, double(j) * h[1], double(k) * h[2]};
       for (std::size_t t = 1; t < nx; ++t) {
@@ -484,7 +567,9 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
       const std::size_t base = u * stride[other];
       double x[3];
       x[other] = double(u) * h[other];
+      auto row_id = [&](std::size_t t) { return axis == 1 ? t + ny * u : u + ny * t; };
       auto row = [&](std::size_t at, std::size_t from) {
+        if (!row_near[row_id(at)] || !row_near[row_id(from)]) return;
         x[axis] = double(at) * h[axis];
         for (std::size_t i = 0; i < nx; ++i) {
           x[0] = double(i) * h[0];

@@ -352,17 +352,18 @@ void wrap_volume(NrrdHolder& h, const Volume& v, const std::string& where) {
   nrrdAxisInfoSet_va(h.n, nrrdAxisInfoKind, nrrdKindDomain, nrrdKindDomain, nrrdKindDomain);
 }
 
-// Label maps and masks are long runs of a few values: zlib's fastest level
-// already shrinks them about a hundredfold, in half the time of the default
-// level (a 137 MB int32 frog label map: 1.1 MB in 0.2 s against 0.38 MB in
-// 0.44 s). Grey levels and distances keep the default level.
-constexpr int kLabelZlibLevel = 1;
+// zlib's fastest level, as nibabel writes .nii.gz: label maps, masks and
+// sizing fields (zero off a band) are long runs and shrink about a
+// hundredfold at level 1 too, in half the time of the default level (a 137 MB
+// int32 frog label map: 1.1 MB in 0.2 s against 0.38 MB in 0.44 s). Float
+// distances barely compress at any level; the tools write those raw.
+constexpr int kZlibLevel = 1;
 
-void set_encoding(NrrdIoState* nio, bool gzip, const std::string& where, VoxelType type) {
+void set_encoding(NrrdIoState* nio, bool gzip, const std::string& where) {
   if (gzip && !nrrdEncodingGzip->available())
     throw IoError(where + ": this Teem build has no gzip encoding; expected one built with zlib");
   nio->encoding = gzip ? nrrdEncodingGzip : nrrdEncodingRaw;
-  if (gzip && is_integer(type)) nio->zlibLevel = kLabelZlibLevel;
+  if (gzip) nio->zlibLevel = kZlibLevel;
 }
 
 void set_data_file_name(NrrdIoState* nio, const std::string& name) {
@@ -383,7 +384,7 @@ void write_nrrd_detached(const Volume& v, const std::string& header_path, const 
   {
     // Voxels to data_path (the header written alongside names it; replaced below).
     NioHolder io;
-    set_encoding(io.nio, gzip, where, v.type());
+    set_encoding(io.nio, gzip, where);
     io.nio->detachedHeader = AIR_TRUE;
     set_data_file_name(io.nio, fs::path(data_path).filename().string());
     if (nrrdSave(header_path.c_str(), h.n, io.nio)) throw IoError(where + ": " + teem_error());
@@ -391,7 +392,7 @@ void write_nrrd_detached(const Volume& v, const std::string& header_path, const 
   if (fs::path(data_path).filename().string() != data_name) {
     // Header only, naming the final data file.
     NioHolder io;
-    set_encoding(io.nio, gzip, where, v.type());
+    set_encoding(io.nio, gzip, where);
     io.nio->detachedHeader = AIR_TRUE;
     io.nio->skipData = AIR_TRUE;
     set_data_file_name(io.nio, data_name);
@@ -410,7 +411,7 @@ void write_nrrd(const Volume& v, const std::string& path, bool gzip) {
   NrrdHolder h;
   wrap_volume(h, v, where);
   NioHolder io;
-  set_encoding(io.nio, gzip, where, v.type());
+  set_encoding(io.nio, gzip, where);
   if (nrrdSave(path.c_str(), h.n, io.nio)) throw IoError(where + ": " + teem_error());
 }
 
