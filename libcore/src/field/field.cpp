@@ -1,8 +1,40 @@
 #include "pm/field/field.h"
 
+#include <atomic>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 
 namespace pm {
+
+struct ValueBounds::Blocks {
+  // A block's lo and hi floats in one word (lo in the low half), so a reader
+  // sees both or neither; kUnset (two all-ones NaNs, which no computation
+  // produces) until computed.
+  static constexpr std::uint64_t kUnset = ~std::uint64_t(0);
+  Fill fill;
+  std::unique_ptr<std::atomic<std::uint64_t>[]> word;
+  Blocks(std::size_t n, Fill f) : fill(std::move(f)), word(new std::atomic<std::uint64_t>[n]) {
+    for (std::size_t b = 0; b < n; ++b) word[b].store(kUnset, std::memory_order_relaxed);
+  }
+  void get(std::size_t b, float& lo, float& hi) const {
+    std::uint64_t w = word[b].load(std::memory_order_relaxed);
+    if (w == kUnset) {
+      fill(b, lo, hi);
+      std::uint32_t l, h;
+      std::memcpy(&l, &lo, 4);
+      std::memcpy(&h, &hi, 4);
+      w = std::uint64_t(h) << 32 | l;
+      if (w == kUnset) w = 0x7FC000007FC00000ull;  // (NaN, NaN) under another pattern
+      word[b].store(w, std::memory_order_relaxed);  // racing threads store the same value
+    }
+    const std::uint32_t l = std::uint32_t(w), h = std::uint32_t(w >> 32);
+    std::memcpy(&lo, &l, 4);
+    std::memcpy(&hi, &h, 4);
+  }
+};
+
+ValueBounds::ValueBounds(std::size_t blocks, Fill fill) : blocks_(std::make_shared<Blocks>(blocks, std::move(fill))) {}
 
 bool ValueBounds::at(const Vec3& x, double& l, double& h) const {
   // The same arithmetic as VolumeField's own index mapping, so a point on a
@@ -16,17 +48,16 @@ bool ValueBounds::at(const Vec3& x, double& l, double& h) const {
     b += std::size_t(i / block) * stride;
     stride *= std::size_t(nb[a]);
   }
-  l = lo[b];
-  h = hi[b];
+  float lo, hi;
+  blocks_->get(b, lo, hi);
+  l = negate_ ? -double(hi) : lo;
+  h = negate_ ? -double(lo) : hi;
   return true;
 }
 
 ValueBounds ValueBounds::negated() const {
   ValueBounds r = *this;
-  for (std::size_t k = 0; k < lo.size(); ++k) {
-    r.lo[k] = -hi[k];
-    r.hi[k] = -lo[k];
-  }
+  r.negate_ = !negate_;
   return r;
 }
 

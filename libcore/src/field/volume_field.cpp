@@ -1195,20 +1195,11 @@ void VolumeField::evaluate_batch(const Vec3* x, std::size_t n, double* f, Vec3* 
 
 std::shared_ptr<const ValueBounds> VolumeField::value_bounds(int block) const {
   if (block < 1) throw UsageError("VolumeField::value_bounds: block must be >= 1, got " + std::to_string(block));
-  auto r = std::make_shared<ValueBounds>();
-  r->to_index = inv_dirs_;
-  r->origin = geom_.origin;
-  r->block = block;
-  for (int a = 0; a < 3; ++a) {
-    r->n[a] = int(dims_[a]);
-    r->nb[a] = (r->n[a] + block - 1) / block;
-  }
-  const std::size_t nblocks = std::size_t(r->nb[0]) * std::size_t(r->nb[1]) * std::size_t(r->nb[2]);
-  r->lo.assign(nblocks, 0.f);
-  r->hi.assign(nblocks, 0.f);
+  int nb[3];
+  for (int a = 0; a < 3; ++a) nb[a] = (int(dims_[a]) + block - 1) / block;
+  const std::size_t nblocks = std::size_t(nb[0]) * std::size_t(nb[1]) * std::size_t(nb[2]);
   // Σ|w| of the value kernel over the 4³ taps (see the header).
   const double wsum = params_.value_kernel == KernelType::catmull_rom ? 1.25 * 1.25 * 1.25 : 1.0;
-  const float* data = data_.data() + base_;
   const int m = block + 3;  // samples per axis: the cells' taps reach i-1 .. i+2
   // Centred sample positions -c .. c and Σ p² of one axis (the design is a
   // full grid, so the least-squares slopes separate by axis).
@@ -1216,57 +1207,68 @@ std::shared_ptr<const ValueBounds> VolumeField::value_bounds(int block) const {
   double spp = 0;
   for (int q = 0; q < m; ++q) spp += (q - c) * (q - c);
   const double count = double(m) * m * m;
-  pm::parallel_for(tbb::blocked_range<int>(0, r->nb[2]), [&](const tbb::blocked_range<int>& zr) {
-    std::vector<double> y(std::size_t(m) * m * m);
-    std::array<std::vector<std::ptrdiff_t>, 3> off;
-    for (auto& o : off) o.resize(std::size_t(m));
-    for (int bz = zr.begin(); bz < zr.end(); ++bz)
-      for (int by = 0; by < r->nb[1]; ++by)
-        for (int bx = 0; bx < r->nb[0]; ++bx) {
-          const int b0[3] = {bx * block - 1, by * block - 1, bz * block - 1};
-          // Each axis' sample offsets, clamped like the field's offset tables
-          // (which replicate the border), once per block.
-          for (int a = 0; a < 3; ++a)
-            for (int q = 0; q < m; ++q) {
-              const Index i = std::min<Index>(std::max<Index>(b0[a] + q, 0), Index(dims_[a]) - 1);
-              off[std::size_t(a)][std::size_t(q)] = offset_[a][std::size_t(i + kPad)];
-            }
-          double sum = 0, sx = 0, sy = 0, sz = 0, ymax = 0;
-          std::size_t k = 0;
-          for (int qz = 0; qz < m; ++qz)
-            for (int qy = 0; qy < m; ++qy)
-              for (int qx = 0; qx < m; ++qx, ++k) {
-                const double v = data[off[0][std::size_t(qx)] + off[1][std::size_t(qy)] + off[2][std::size_t(qz)]];
-                y[k] = v;
-                sum += v;
-                sx += (qx - c) * v;
-                sy += (qy - c) * v;
-                sz += (qz - c) * v;
-                ymax = std::max(ymax, std::fabs(v));
-              }
-          const double mean = sum / count, gx = sx / (spp * m * m), gy = sy / (spp * m * m), gz = sz / (spp * m * m);
-          double e = 0;
-          k = 0;
-          for (int qz = 0; qz < m; ++qz)
-            for (int qy = 0; qy < m; ++qy)
-              for (int qx = 0; qx < m; ++qx, ++k)
-                e = std::max(e, std::fabs(y[k] - (mean + gx * (qx - c) + gy * (qy - c) + gz * (qz - c))));
-          // L over the block's cells (index offsets 1 .. block+1 from b0,
-          // i.e. -block/2 .. block/2 around the centre), plus the residual
-          // carried by the weights, plus a margin for the rounding of both
-          // the evaluation and these sums.
-          const double reach = 0.5 * block * (std::fabs(gx) + std::fabs(gy) + std::fabs(gz));
-          const double margin = 1e-9 * (ymax + 1.0);
-          const double lo = mean - reach - wsum * e - margin, hi = mean + reach + wsum * e + margin;
-          const std::size_t b = (std::size_t(bz) * std::size_t(r->nb[1]) + std::size_t(by)) * std::size_t(r->nb[0]) +
-                                std::size_t(bx);
-          float fl = float(lo), fh = float(hi);
-          if (double(fl) > lo) fl = std::nextafter(fl, -std::numeric_limits<float>::infinity());
-          if (double(fh) < hi) fh = std::nextafter(fh, std::numeric_limits<float>::infinity());
-          r->lo[b] = fl;
-          r->hi[b] = fh;
+  auto fill = [this, block, m, c, spp, count, wsum, nbx = nb[0], nby = nb[1]](std::size_t b, float& fl,
+                                                                                float& fh) {
+    const float* data = data_.data() + base_;
+    const int bx = int(b % std::size_t(nbx)), by = int(b / std::size_t(nbx) % std::size_t(nby)),
+              bz = int(b / (std::size_t(nbx) * std::size_t(nby)));
+    const int b0[3] = {bx * block - 1, by * block - 1, bz * block - 1};
+    // Each axis' sample offsets, clamped like the field's offset tables
+    // (which replicate the border).
+    std::ptrdiff_t off[3][16];
+    std::vector<std::ptrdiff_t> big[3];
+    std::ptrdiff_t* o[3];
+    for (int a = 0; a < 3; ++a) {
+      if (m > 16) {
+        big[a].resize(std::size_t(m));
+        o[a] = big[a].data();
+      } else {
+        o[a] = off[a];
+      }
+      for (int q = 0; q < m; ++q) {
+        const Index i = std::min<Index>(std::max<Index>(b0[a] + q, 0), Index(dims_[a]) - 1);
+        o[a][q] = offset_[a][std::size_t(i + kPad)];
+      }
+    }
+    double sum = 0, sx = 0, sy = 0, sz = 0, ymax = 0;
+    for (int qz = 0; qz < m; ++qz)
+      for (int qy = 0; qy < m; ++qy)
+        for (int qx = 0; qx < m; ++qx) {
+          const double v = data[o[0][qx] + o[1][qy] + o[2][qz]];
+          sum += v;
+          sx += (qx - c) * v;
+          sy += (qy - c) * v;
+          sz += (qz - c) * v;
+          ymax = std::max(ymax, std::fabs(v));
         }
-  });
+    const double mean = sum / count, gx = sx / (spp * m * m), gy = sy / (spp * m * m), gz = sz / (spp * m * m);
+    double e = 0;
+    for (int qz = 0; qz < m; ++qz)
+      for (int qy = 0; qy < m; ++qy)
+        for (int qx = 0; qx < m; ++qx) {
+          const double v = data[o[0][qx] + o[1][qy] + o[2][qz]];
+          e = std::max(e, std::fabs(v - (mean + gx * (qx - c) + gy * (qy - c) + gz * (qz - c))));
+        }
+    // L over the block's cells (index offsets 1 .. block+1 from b0, i.e.
+    // -block/2 .. block/2 around the centre), plus the residual carried by
+    // the weights, plus a margin for the rounding of both the evaluation and
+    // these sums.
+    const double reach = 0.5 * block * (std::fabs(gx) + std::fabs(gy) + std::fabs(gz));
+    const double margin = 1e-9 * (ymax + 1.0);
+    const double lo = mean - reach - wsum * e - margin, hi = mean + reach + wsum * e + margin;
+    fl = float(lo);
+    fh = float(hi);
+    if (double(fl) > lo) fl = std::nextafter(fl, -std::numeric_limits<float>::infinity());
+    if (double(fh) < hi) fh = std::nextafter(fh, std::numeric_limits<float>::infinity());
+  };
+  auto r = std::make_shared<ValueBounds>(nblocks, fill);
+  r->to_index = inv_dirs_;
+  r->origin = geom_.origin;
+  r->block = block;
+  for (int a = 0; a < 3; ++a) {
+    r->n[a] = int(dims_[a]);
+    r->nb[a] = nb[a];
+  }
   return r;
 }
 

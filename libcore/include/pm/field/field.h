@@ -3,6 +3,7 @@
 // volumes. Everything is in world units. Surfaces are level sets F = iso with
 // F < iso inside by convention (distance fields: negative inside).
 #include <cstddef>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -15,13 +16,19 @@ namespace pm {
 /// whose voxel cell lies in a block, lo <= value(x) <= hi, guaranteed (not
 /// estimated), so a caller can skip an evaluation whose outcome the bounds
 /// already decide (e.g. the dominance check of a junction projection).
-/// Made by ScalarField::value_bounds; immutable, thread-safe.
+/// Made by ScalarField::value_bounds; thread-safe. A block's bounds are
+/// computed when first asked for (most callers ask near a few surfaces
+/// only): a pure function of the block, so any schedule gets the same ones.
+/// Valid while the field that made them lives.
 class ValueBounds {
  public:
+  /// Computes block b's bounds (blocks x fastest).
+  using Fill = std::function<void(std::size_t b, float& lo, float& hi)>;
+  ValueBounds(std::size_t blocks, Fill fill);
   /// The bounds of the block holding x; false (lo, hi untouched) outside
   /// the grid's nodes or for a non-finite x.
   bool at(const Vec3& x, double& lo, double& hi) const;
-  /// The same bounds negated (for -F).
+  /// The same bounds negated (for -F); shares the computed blocks.
   ValueBounds negated() const;
 
   Mat3 to_index;       ///< world -> index: t = to_index (x - origin)
@@ -29,7 +36,11 @@ class ValueBounds {
   int block = 4;       ///< voxel cells per block edge
   int n[3] = {0, 0, 0};   ///< grid nodes per axis
   int nb[3] = {0, 0, 0};  ///< blocks per axis
-  std::vector<float> lo, hi;  ///< per block, x fastest
+
+ private:
+  struct Blocks;  // the fill and the computed blocks (lo, hi packed; unset until asked for)
+  std::shared_ptr<Blocks> blocks_;
+  bool negate_ = false;
 };
 
 class ScalarField {
