@@ -21,6 +21,10 @@ add_library(pmfuzzcore STATIC
   libcore/src/io/frame.cpp
   libcore/src/io/nrrd.cpp
   libcore/src/io/vdb.cpp
+  libcore/src/io/vdb_openvdb.cpp
+  libcore/src/field/mesh_sdf.cpp
+  libcore/src/field/mesh_sdf_openvdb.cpp
+  libcore/src/baseline/marching_cubes_openvdb.cpp
   libcore/src/io/metaimage.cpp
   libcore/src/io/nifti.cpp
   libcore/src/io/inr.cpp
@@ -50,14 +54,15 @@ add_library(pmfuzzcore STATIC
 )
 target_include_directories(pmfuzzcore PUBLIC libcore/include tests/fuzz ${NIFTI_INCLUDE_DIR}/nifti
   ${CLI11_INCLUDE_DIR} ${TEEM_INCLUDE_DIR} ${NIFTI_INCLUDE_DIR} ${TINYXML2_INCLUDE_DIR})
-target_compile_definitions(pmfuzzcore PUBLIC PM_VERSION="${PROJECT_VERSION}")
+# OpenVDB linked in, not loaded as the plugin (src/io/openvdb_plugin.h).
+target_compile_definitions(pmfuzzcore PUBLIC PM_VERSION="${PROJECT_VERSION}" PM_OPENVDB_LINKED)
 target_compile_options(pmfuzzcore PUBLIC ${PM_FUZZ_FLAGS})
 # TBB's concurrent_hash_map (OpenVDB's accessor registry, instantiated in
-# vdb.cpp) downcasts small sentinel pointer values, which UBSan's alignment
+# vdb_openvdb.cpp) downcasts small sentinel pointer values, which UBSan's alignment
 # check reports inside TBB's header; that check is off for this one file.
 # OpenVDB also reads tile flags from the file straight into a bool
 # (scripts/ubsan.supp), so the bool check is off for this file too.
-set_source_files_properties(libcore/src/io/vdb.cpp PROPERTIES COMPILE_OPTIONS "-fno-sanitize=alignment;-fno-sanitize=bool")
+set_source_files_properties(libcore/src/io/vdb_openvdb.cpp PROPERTIES COMPILE_OPTIONS "-fno-sanitize=alignment;-fno-sanitize=bool")
 target_link_options(pmfuzzcore PUBLIC -fsanitize=address,undefined)
 target_link_libraries(pmfuzzcore PUBLIC
   OpenVDB::openvdb TBB::tbb CGAL::CGAL nlohmann_json::nlohmann_json

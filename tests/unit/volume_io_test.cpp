@@ -264,7 +264,7 @@ TEST(VolumeIoRoundTrip, VdbFloatKeepsValuesDimsAndGeometry) {
 }
 
 TEST(VolumeIoRoundTrip, VdbStoresLabelsAsIntegerGridsOfTheSameType) {
-  ensure_openvdb_initialized();
+  openvdb::initialize();
   const std::string dir = test::temp_dir();
   // Every integer type comes back with its type and values (the byte pattern
   // of make_volume reaches each type's extremes), in an int32 grid or, when a
@@ -313,7 +313,7 @@ TEST(VolumeIoRoundTrip, VdbStoresLabelsAsIntegerGridsOfTheSameType) {
 }
 
 TEST(VolumeIoRoundTrip, VdbIntegerGridsFromElsewhereAndBadMetadata) {
-  ensure_openvdb_initialized();
+  openvdb::initialize();
   const std::string dir = test::temp_dir();
   // An int32 grid without our metadata reads as int32, taken as LPS.
   openvdb::Int32Grid::Ptr g = openvdb::Int32Grid::create(0);
@@ -352,7 +352,7 @@ TEST(VolumeIoRoundTrip, VdbIntegerGridsFromElsewhereAndBadMetadata) {
 }
 
 TEST(VolumeIoRoundTrip, VdbLevelSetIncludesInactiveVoxelsOfTheBox) {
-  ensure_openvdb_initialized();
+  openvdb::initialize();
   const std::string dir = test::temp_dir();
   // Narrow-band sphere, radius 2, voxel 0.25, centre (1,2,3): background 3 voxels = 0.75.
   auto ls = openvdb::tools::createLevelSetSphere<openvdb::FloatGrid>(2.0f, openvdb::Vec3f(1, 2, 3), 0.25f, 3.0f);
@@ -393,7 +393,7 @@ TEST(VolumeIoRoundTrip, VdbLevelSetIncludesInactiveVoxelsOfTheBox) {
 }
 
 TEST(VolumeIoRoundTrip, VdbDoubleGridAndNonLinearTransform) {
-  ensure_openvdb_initialized();
+  openvdb::initialize();
   const std::string dir = test::temp_dir();
   openvdb::DoubleGrid::Ptr d = openvdb::DoubleGrid::create(0.0);
   d->tree().setValue(openvdb::Coord(1, 2, 3), 0.1);

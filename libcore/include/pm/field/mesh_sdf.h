@@ -21,6 +21,16 @@ struct MeshCheck {
 /// Count boundary and non-manifold edges of a triangle mesh.
 MeshCheck check_closed(const Mesh& m);
 
+/// The grid mesh_to_sdf samples: the mesh's bounding box plus the padding
+/// (and a voxel when banded), on multiples of the voxel size.
+struct MeshSdfGrid {
+  Dims dims;
+  Vec3 origin;
+};
+/// \throw UsageError (voxel, band, padding), InputError (no faces, not
+/// closed, a non-finite vertex, a grid of more than 2^31 voxels).
+MeshSdfGrid mesh_sdf_grid(const Mesh& m, const MeshSdfParams& p);
+
 /// Dense float signed distance volume (negative inside, world units) over the
 /// mesh's bounding box plus padding, axis-aligned with spacing `voxel`.
 /// Outside the band (band > 0) values are clamped to ±band·voxel.

@@ -17,6 +17,9 @@
 // equal to it are made inactive and pruned, except the two extreme corners,
 // which stay active so the active bounding box - and so the dims - survive a
 // round trip.
+// OpenVDB itself is loaded with the plugin libpmcore_openvdb.so on the first
+// call (see src/io/openvdb_plugin.h): tools that never touch a VDB file do
+// not pay for loading it.
 #include <string>
 
 #include "pm/base/volume.h"
@@ -27,7 +30,6 @@ namespace pm {
 /// geometry, metadata naming an unknown frame or a type the values do not fit).
 Volume read_vdb(const std::string& path, const std::string& grid_name = {});
 /// \throw InputError for uint64 values of 2^63 or more; IoError on write failure.
+/// Both throw Error when the OpenVDB plugin cannot be loaded.
 void write_vdb(const Volume& v, const std::string& path, const std::string& grid_name = "field");
-/// Make sure openvdb::initialize() was called (idempotent, thread-safe).
-void ensure_openvdb_initialized();
 }  // namespace pm
