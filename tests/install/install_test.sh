@@ -11,7 +11,7 @@ prefix=$tmp/prefix
 lib=
 for f in "$prefix"/lib/libpmcore.so "$prefix"/lib/libpmcore.a; do [ -e "$f" ] && lib=$f; done
 [ -n "$lib" ] || { echo "install_test: no libpmcore.so or libpmcore.a in $prefix/lib after cmake --install" >&2; exit 1; }
-for f in bin/particles bin/tetlabel bin/volconv include/pm/base/volume.h include/pm/mesh/pipeline.h \
+for f in bin/particles bin/tetlabel bin/volconv lib/libpmcore_openvdb.so include/pm/base/volume.h include/pm/mesh/pipeline.h \
          lib/cmake/particlemesh/particlemeshConfig.cmake; do
   [ -e "$prefix/$f" ] || { echo "install_test: $prefix/$f is missing after cmake --install" >&2; exit 1; }
 done
@@ -21,6 +21,15 @@ done
   -DCMAKE_CXX_COMPILER="$cxx" >"$tmp/configure.log" 2>&1 || { cat "$tmp/configure.log"; exit 1; }
 "$cmake" --build "$tmp/build" >"$tmp/build.log" 2>&1 || { cat "$tmp/build.log"; exit 1; }
 "$tmp/build/consumer" "$tmp"
+# The installed tools load OpenVDB through the installed plugin: a VDB round trip.
+"$prefix/bin/volconv" "$tmp/consumer.nrrd" "$tmp/consumer.vdb" -q
+"$prefix/bin/volconv" "$tmp/consumer.vdb" "$tmp/back.nrrd" -q
+# Header, labels and value statistics the same, but for the file name.
+if ! diff <("$prefix/bin/volconv" --info "$tmp/consumer.nrrd" | grep -v '"file"') \
+          <("$prefix/bin/volconv" --info "$tmp/back.nrrd" | grep -v '"file"'); then
+  echo "install_test: the volume changed in a VDB round trip through the installed plugin" >&2
+  exit 1
+fi
 # The Python package, when it was built, installs beside them and loads the
 # installed libpmcore: it reads the consumer's NRRD.
 if [ -d "$build/python/particlemesh" ]; then
