@@ -1,6 +1,7 @@
 #include "pm/field/volume_field.h"
 
 #include <gtest/gtest.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -726,6 +727,34 @@ TEST(VolumeField, ValueBoundsHoldAtEveryPoint) {
     EXPECT_FALSE(f.value_bounds(4)->at(Vec3(std::nan(""), 0, 0), lo, hi));
   }
   EXPECT_THROW(VolumeField(v, kBspline).value_bounds(0), UsageError);
+}
+
+TEST(VolumeField, ValueBoundsAreTheSameWhoeverAsksFirst) {
+  // Blocks are computed on first use, from whichever thread asks: bounds
+  // asked for by many threads at once (each block by several) equal those of
+  // a fresh object asked one point at a time, and the negated bounds share
+  // the blocks the plain ones computed.
+  const Volume v = random_volume(Dims{31, 27, 22}, oblique_geometry(), 11);
+  const VolumeField f(v, kCatmullRom);
+  const NegatedField neg(f);
+  const std::vector<Vec3> pts = bound_probe_points(v, 4, 21);
+  const auto shared = f.value_bounds(4);
+  const auto shared_neg = neg.value_bounds(4);
+  const std::size_t n = pts.size();
+  std::vector<double> lo(4 * n, -1), hi(4 * n, -1);
+  tbb::parallel_for(std::size_t(0), 4 * n, [&](std::size_t q) { shared->at(pts[q % n], lo[q], hi[q]); });
+  const auto fresh = f.value_bounds(4);
+  for (std::size_t k = 0; k < n; ++k) {
+    double l, h, nl, nh;
+    ASSERT_TRUE(fresh->at(pts[k], l, h));
+    for (std::size_t c = 0; c < 4; ++c) {
+      EXPECT_EQ(lo[k + c * n], l);
+      EXPECT_EQ(hi[k + c * n], h);
+    }
+    ASSERT_TRUE(shared_neg->at(pts[k], nl, nh));
+    EXPECT_EQ(nl, -h);
+    EXPECT_EQ(nh, -l);
+  }
 }
 
 TEST(VolumeField, ValueBoundsOfALinearFieldAreTheFitAlone) {
