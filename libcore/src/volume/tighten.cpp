@@ -45,11 +45,14 @@ TightenDefaults tighten_defaults(const Volume& v, double radius, int upsample) {
 std::vector<std::uint8_t> binary_mask_inside(const Volume& mask, const std::string& what) {
   const std::size_t n = mask.count();
   if (n == 0) throw InputError(what + ": the volume has no voxels");
-  const double a = mask.get(0);
+  // uint8 masks (tighten_labels' per-label masks among them) read directly.
+  const std::uint8_t* u8 = mask.type() == VoxelType::u8 ? mask.data<std::uint8_t>() : nullptr;
+  auto get = [&](std::size_t c) { return u8 ? double(u8[c]) : mask.get(c); };
+  const double a = get(0);
   double b = a;
   bool two = false;
   for (std::size_t c = 1; c < n; ++c) {
-    const double v = mask.get(c);
+    const double v = get(c);
     if (v == a || (two && v == b)) continue;
     if (!two) {
       b = v;
@@ -61,7 +64,7 @@ std::vector<std::uint8_t> binary_mask_inside(const Volume& mask, const std::stri
     std::set<double> values;
     bool nan = false;
     for (std::size_t d = 0; d < n && values.size() < kCap; ++d) {
-      const double w = mask.get(d);
+      const double w = get(d);
       if (std::isnan(w)) nan = true;
       else values.insert(w);
     }
@@ -79,7 +82,7 @@ std::vector<std::uint8_t> binary_mask_inside(const Volume& mask, const std::stri
   }
   const double in = std::max(a, b);
   std::vector<std::uint8_t> inside(n);
-  for (std::size_t c = 0; c < n; ++c) inside[c] = mask.get(c) == in ? 1 : 0;
+  for (std::size_t c = 0; c < n; ++c) inside[c] = get(c) == in ? 1 : 0;
   return inside;
 }
 
@@ -548,8 +551,13 @@ void tighten_labels(const Volume& lv, const TightenParams& p,
   const Dims& n0 = lv.dims();
   std::vector<int> lab(lv.count());
   std::map<int, std::size_t> counts;
+  // int32 label maps read directly; the counts go to the map once per run of
+  // equal labels.
+  const std::int32_t* i32 = lv.type() == VoxelType::i32 ? lv.data<std::int32_t>() : nullptr;
+  int run_label = 0;
+  std::size_t run = 0;
   for (std::size_t c = 0; c < lv.count(); ++c) {
-    const double v = lv.get(c);
+    const double v = i32 ? double(i32[c]) : lv.get(c);
     if (!std::isfinite(v) || v != std::floor(v) || std::fabs(v) > 2147483647.0) {
       std::ostringstream m;
       m << "tighten: voxel (" << c % n0.nx << "," << (c / n0.nx) % n0.ny << "," << c / (n0.nx * n0.ny) << ") is "
@@ -557,8 +565,15 @@ void tighten_labels(const Volume& lv, const TightenParams& p,
       throw InputError(m.str());
     }
     lab[c] = int(v);
-    ++counts[lab[c]];
+    if (run > 0 && lab[c] == run_label) {
+      ++run;
+    } else {
+      if (run > 0) counts[run_label] += run;
+      run_label = lab[c];
+      run = 1;
+    }
   }
+  if (run > 0) counts[run_label] += run;
   if (counts.size() < 2)
     throw InputError("tighten: the label map has only one label (" + std::to_string(counts.begin()->first) +
                      "); expected at least 2 materials");
