@@ -187,9 +187,6 @@ void disc_d2_x4(const float (&p)[3][kCandSlots], const float (&m)[3][kCandSlots]
 }
 
 #if PM_AVX2_COPIES
-// The same, eight at a time (AVX2, chosen at run time): the same IEEE
-// operations in the same order on every lane (no FMA), so the same floats as
-// disc_d2_x4.
 // float(double(v[i]) - c) for eight v.
 __attribute__((target("avx2"))) inline __m256 sub_x8(const float* v, __m256d c) {
   const __m128 lo = _mm256_cvtpd_ps(_mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(v)), c));
@@ -197,6 +194,9 @@ __attribute__((target("avx2"))) inline __m256 sub_x8(const float* v, __m256d c) 
   return _mm256_insertf128_ps(_mm256_castps128_ps256(lo), hi, 1);
 }
 
+// disc_d2_x4 eight at a time (AVX2, chosen at run time): the same IEEE
+// operations in the same order on every lane (no FMA), so the same floats;
+// slots n .. up to the next multiple of eight are computed and ignored.
 __attribute__((target("avx2"))) void disc_d2_x8(const float (&p)[3][kCandSlots], const float (&m)[3][kCandSlots],
                                                 int n, const double x[3], float rho, float (&out)[kCandSlots]) {
   const __m256d x0 = _mm256_set1_pd(x[0]), x1 = _mm256_set1_pd(x[1]), x2 = _mm256_set1_pd(x[2]);
