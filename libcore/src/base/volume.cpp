@@ -101,23 +101,6 @@ Volume::Volume(VoxelType type, Dims dims, Geometry geometry)
 }
 
 namespace {
-template <class F>
-decltype(auto) dispatch(VoxelType t, F&& f) {
-  switch (t) {
-    case VoxelType::u8: return f(std::uint8_t{});
-    case VoxelType::i8: return f(std::int8_t{});
-    case VoxelType::u16: return f(std::uint16_t{});
-    case VoxelType::i16: return f(std::int16_t{});
-    case VoxelType::u32: return f(std::uint32_t{});
-    case VoxelType::i32: return f(std::int32_t{});
-    case VoxelType::u64: return f(std::uint64_t{});
-    case VoxelType::i64: return f(std::int64_t{});
-    case VoxelType::f32: return f(float{});
-    case VoxelType::f64: return f(double{});
-  }
-  return f(float{});
-}
-
 template <class T>
 T convert_to(double v) {
   if constexpr (std::is_floating_point_v<T>) {
@@ -144,7 +127,7 @@ template <> constexpr VoxelType type_of<double>() { return VoxelType::f64; }
 }  // namespace
 
 double Volume::get(std::size_t idx) const {
-  return dispatch(type_, [&](auto tag) -> double {
+  return visit_voxel_type(type_, [&](auto tag) -> double {
     using T = decltype(tag);
     T v;
     std::memcpy(&v, bytes_.data() + idx * sizeof(T), sizeof(T));
@@ -153,7 +136,7 @@ double Volume::get(std::size_t idx) const {
 }
 
 void Volume::set(std::size_t idx, double value) {
-  dispatch(type_, [&](auto tag) {
+  visit_voxel_type(type_, [&](auto tag) {
     using T = decltype(tag);
     const T v = convert_to<T>(value);
     std::memcpy(bytes_.data() + idx * sizeof(T), &v, sizeof(T));
@@ -180,7 +163,7 @@ PM_INST(float) PM_INST(double)
 
 std::vector<float> Volume::to_float() const {
   std::vector<float> out(count());
-  dispatch(type_, [&](auto tag) {
+  visit_voxel_type(type_, [&](auto tag) {
     using T = decltype(tag);
     const T* p = reinterpret_cast<const T*>(bytes_.data());
     for (std::size_t i = 0; i < out.size(); ++i) out[i] = static_cast<float>(p[i]);
@@ -191,7 +174,7 @@ std::vector<float> Volume::to_float() const {
 
 std::vector<double> Volume::to_double() const {
   std::vector<double> out(count());
-  dispatch(type_, [&](auto tag) {
+  visit_voxel_type(type_, [&](auto tag) {
     using T = decltype(tag);
     const T* p = reinterpret_cast<const T*>(bytes_.data());
     for (std::size_t i = 0; i < out.size(); ++i) out[i] = static_cast<double>(p[i]);
@@ -220,7 +203,7 @@ void require_finite(const Volume& v, const std::string& what) {
   if (is_integer(v.type())) return;
   const std::size_t n = v.count();
   // The first non-finite voxel, by a typed loop (get() per voxel was a call each).
-  const std::size_t bad = dispatch(v.type(), [&](auto tag) -> std::size_t {
+  const std::size_t bad = visit_voxel_type(v.type(), [&](auto tag) -> std::size_t {
     using T = decltype(tag);
     const T* p = static_cast<const T*>(v.raw());
     for (std::size_t i = 0; i < n; ++i)
@@ -245,7 +228,7 @@ ValueRange value_range(const Volume& v) {
   const std::size_t n = v.count();
   // A typed loop (get() per voxel was a call each); NaN voxels are skipped
   // alike (std::min and std::max keep the first argument on NaN).
-  dispatch(v.type(), [&](auto tag) {
+  visit_voxel_type(v.type(), [&](auto tag) {
     using T = decltype(tag);
     const T* p = static_cast<const T*>(v.raw());
     for (std::size_t i = 0; i < n; ++i) {

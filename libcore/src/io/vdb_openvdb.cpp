@@ -106,23 +106,6 @@ const char* const kFrameKey = "pm_world_frame";
 const char* const kTypeKey = "pm_voxel_type";
 const char* const kLabelsKey = "pm_labels";
 
-// Calls f(T{}) with T the C++ type of voxel type t.
-template <class F>
-void visit_voxel_type(VoxelType t, F&& f) {
-  switch (t) {
-    case VoxelType::u8: f(std::uint8_t{}); break;
-    case VoxelType::i8: f(std::int8_t{}); break;
-    case VoxelType::u16: f(std::uint16_t{}); break;
-    case VoxelType::i16: f(std::int16_t{}); break;
-    case VoxelType::u32: f(std::uint32_t{}); break;
-    case VoxelType::i32: f(std::int32_t{}); break;
-    case VoxelType::u64: f(std::uint64_t{}); break;
-    case VoxelType::i64: f(std::int64_t{}); break;
-    case VoxelType::f32: f(float{}); break;
-    case VoxelType::f64: f(double{}); break;
-  }
-}
-
 bool is_supported_grid(const openvdb::GridBase& g) {
   return g.isType<openvdb::FloatGrid>() || g.isType<openvdb::DoubleGrid>() || g.isType<openvdb::Int32Grid>() ||
          g.isType<openvdb::Int64Grid>();

@@ -105,16 +105,21 @@ std::map<std::int64_t, std::size_t> label_counts(const Volume& v, std::size_t ma
       throw InputError("label_counts: more than " + std::to_string(max_labels) +
                        " distinct values; expected a label map");
   };
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::int64_t x = std::int64_t(v.get(i));
-    if (run > 0 && x == last) {
-      ++run;
-      continue;
+  visit_voxel_type(v.type(), [&](auto tag) {
+    using T = decltype(tag);
+    const T* p = v.data<T>();
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::int64_t x = std::int64_t(static_cast<double>(p[i]));
+      if (run > 0 && x == last) {
+        ++run;
+        continue;
+      }
+      flush();
+      last = x;
+      run = 1;
     }
-    flush();
-    last = x;
-    run = 1;
-  }
+    return 0;
+  });
   flush();
   return {counts.begin(), counts.end()};
 }
@@ -224,15 +229,20 @@ Volume merge_labels(const Volume& v, const std::vector<MergeRule>& rules) {
   const std::size_t n = v.count();
   std::int64_t last = 0;
   const std::int64_t* to = nullptr;  // last's new label, or nullptr: unchanged
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::int64_t x = std::int64_t(v.get(i));
-    if (i == 0 || x != last) {  // one lookup per run of equal labels
-      const auto it = map.find(x);
-      to = it != map.end() ? &it->second : nullptr;
-      last = x;
+  visit_voxel_type(v.type(), [&](auto tag) {
+    using T = decltype(tag);
+    const T* p = v.data<T>();
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::int64_t x = std::int64_t(static_cast<double>(p[i]));
+      if (i == 0 || x != last) {  // one lookup per run of equal labels
+        const auto it = map.find(x);
+        to = it != map.end() ? &it->second : nullptr;
+        last = x;
+      }
+      if (to) out.set(i, double(*to));
     }
-    if (to) out.set(i, double(*to));
-  }
+    return 0;
+  });
   return out;
 }
 
@@ -253,8 +263,13 @@ Volume drop_small_labels(const Volume& v, std::size_t min_voxels, std::vector<st
   std::vector<std::uint8_t> open(n);
   std::vector<std::size_t> todo;
   bool dropped_last = false;
+  visit_voxel_type(v.type(), [&](auto tag) {
+    using T = decltype(tag);
+    const T* p = v.data<T>();
+    for (std::size_t c = 0; c < n; ++c) lab[c] = std::int64_t(static_cast<double>(p[c]));
+    return 0;
+  });
   for (std::size_t c = 0; c < n; ++c) {
-    lab[c] = std::int64_t(v.get(c));
     if (c == 0 || lab[c] != lab[c - 1]) dropped_last = drop.count(lab[c]) > 0;  // one lookup per run
     if (dropped_last) {
       open[c] = 1;

@@ -87,6 +87,25 @@ struct FrameSource {
 };
 
 /// Volume: dims, geometry, and a typed voxel buffer.
+/// Calls f(T{}) with T the C++ type of voxel type t (std::uint8_t ... double),
+/// for typed loops over Volume::data<T>() instead of a get() call per voxel.
+template <class F>
+decltype(auto) visit_voxel_type(VoxelType t, F&& f) {
+  switch (t) {
+    case VoxelType::u8: return f(std::uint8_t{});
+    case VoxelType::i8: return f(std::int8_t{});
+    case VoxelType::u16: return f(std::uint16_t{});
+    case VoxelType::i16: return f(std::int16_t{});
+    case VoxelType::u32: return f(std::uint32_t{});
+    case VoxelType::i32: return f(std::int32_t{});
+    case VoxelType::u64: return f(std::uint64_t{});
+    case VoxelType::i64: return f(std::int64_t{});
+    case VoxelType::f32: return f(float{});
+    case VoxelType::f64: return f(double{});
+  }
+  return f(float{});
+}
+
 class Volume {
  public:
   Volume() = default;
