@@ -227,19 +227,26 @@ Volume merge_labels(const Volume& v, const std::vector<MergeRule>& rules) {
   if (!fits) t = VoxelType::i32;
   Volume out = t == v.type() ? v : v.converted(t);
   const std::size_t n = v.count();
-  std::int64_t last = 0;
-  const std::int64_t* to = nullptr;  // last's new label, or nullptr: unchanged
+  // One lookup per run of equal labels; a relabelled run is written as its
+  // first voxel (set() converts) copied along the run.
   visit_voxel_type(v.type(), [&](auto tag) {
     using T = decltype(tag);
     const T* p = v.data<T>();
-    for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t i = 0; i < n;) {
       const std::int64_t x = std::int64_t(static_cast<double>(p[i]));
-      if (i == 0 || x != last) {  // one lookup per run of equal labels
-        const auto it = map.find(x);
-        to = it != map.end() ? &it->second : nullptr;
-        last = x;
+      std::size_t e = i + 1;
+      while (e < n && std::int64_t(static_cast<double>(p[e])) == x) ++e;
+      const auto it = map.find(x);
+      if (it != map.end()) {
+        out.set(i, double(it->second));
+        visit_voxel_type(out.type(), [&](auto otag) {
+          using U = decltype(otag);
+          U* q = out.data<U>();
+          std::fill(q + i + 1, q + e, q[i]);
+          return 0;
+        });
       }
-      if (to) out.set(i, double(*to));
+      i = e;
     }
     return 0;
   });
