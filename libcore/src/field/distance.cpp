@@ -219,6 +219,35 @@ __attribute__((target("avx2"))) void disc_d2_x8(const float (&p)[3][kCandSlots],
     _mm256_store_ps(out + q, _mm256_blendv_ps(d2, vv, point));
   }
 }
+
+// The first strict minimum of d[0 .. n) (the scalar search's: starting from
+// +infinity, the first d[q] < best wins, NaN never), eight lanes at a time:
+// the smallest value by a min-reduction (NaN and the slots from n on count
+// as +infinity), then the first slot holding it. Returns its index, or -1
+// when no d[q] is below +infinity (best is then +infinity).
+__attribute__((target("avx2"))) int first_min_x8(const float (&d)[kCandSlots], int n, float& best) {
+  const __m256 inf = _mm256_set1_ps(std::numeric_limits<float>::infinity());
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  __m256 m = inf;
+  for (int q = 0; q < n; q += 8) {
+    const __m256 v = _mm256_load_ps(d + q);
+    const __m256 valid = _mm256_and_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(n - q), lane)),
+                                       _mm256_cmp_ps(v, v, _CMP_ORD_Q));
+    m = _mm256_min_ps(m, _mm256_blendv_ps(inf, v, valid));
+  }
+  __m128 t = _mm_min_ps(_mm256_castps256_ps128(m), _mm256_extractf128_ps(m, 1));
+  t = _mm_min_ps(t, _mm_movehl_ps(t, t));
+  t = _mm_min_ss(t, _mm_shuffle_ps(t, t, 1));
+  best = _mm_cvtss_f32(t);
+  if (!(best < std::numeric_limits<float>::infinity())) return -1;
+  const __m256 b = _mm256_set1_ps(best);
+  for (int q = 0; q < n; q += 8) {
+    const int valid = n - q >= 8 ? 0xFF : (1 << (n - q)) - 1;
+    const int hit = _mm256_movemask_ps(_mm256_cmp_ps(_mm256_load_ps(d + q), b, _CMP_EQ_OQ)) & valid;
+    if (hit) return q + __builtin_ctz(unsigned(hit));
+  }
+  return -1;
+}
 #endif
 
 }  // namespace
@@ -511,17 +540,21 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
             }
           }
         }
+        float best = std::numeric_limits<float>::infinity();  // the first strict minimum
 #if PM_AVX2_COPIES
-        if (avx2)
+        if (avx2) {
           disc_d2_x8(cp, cm, ncand, x, rhof, cd2);
-        else
+          const int q = first_min_x8(cd2, ncand, best);
+          if (q >= 0) arg = cand[q];
+        } else
 #endif
+        {
           disc_d2_x4(cp, cm, ncand, x, rhof, cd2);
-        float best = std::numeric_limits<float>::infinity();  // the first strict minimum, without a branch
-        for (int q = 0; q < ncand; ++q) {
-          const bool lt = cd2[q] < best;
-          best = lt ? cd2[q] : best;
-          arg = lt ? cand[q] : arg;
+          for (int q = 0; q < ncand; ++q) {  // without a branch
+            const bool lt = cd2[q] < best;
+            best = lt ? cd2[q] : best;
+            arg = lt ? cand[q] : arg;
+          }
         }
         site[c] = arg;
         sq[c] = best;
