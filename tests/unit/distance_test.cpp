@@ -4,6 +4,9 @@
 
 #include <cfloat>
 #include <cmath>
+#include <random>
+#include <limits>
+#include <cstring>
 #include <functional>
 
 #include "pm/base/error.h"
@@ -177,4 +180,50 @@ TEST(Distance, OneVoxelMask) {
 }
 
 }  // namespace
+TEST(Distance, CandidateKernelsAgreeBitForBitWithTheBaselineCopies) {
+  // The AVX2 copies of the candidate search (disc distances eight at a time,
+  // the first strict minimum by a min-reduction) against the SSE2 / scalar
+  // ones, bit for bit, for every count of candidates, points (m = 0) among
+  // discs, exact ties, +infinity and NaN in the distances, and stale values
+  // in the slots past the candidates.
+  using detail::kDiscSlots;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-3.f, 3.f);
+  int ties = 0;
+  for (int round = 0; round < 400; ++round) {
+    alignas(32) float p[3][kDiscSlots], m[3][kDiscSlots];
+    for (int q = 0; q < kDiscSlots; ++q) {
+      Vec3 nrm(u(rng), u(rng), u(rng));
+      nrm = normalized(nrm);
+      const bool point = q % 5 == 2;
+      for (int a = 0; a < 3; ++a) {
+        p[a][q] = u(rng);
+        m[a][q] = point ? 0.f : float(nrm[a]);
+      }
+    }
+    const int n = round % 28;
+    const double x[3] = {u(rng), u(rng), u(rng)};
+    alignas(32) float base[kDiscSlots], fast[kDiscSlots];
+    detail::disc_distances(p, m, n, x, 0.6f, base, false);
+    detail::disc_distances(p, m, n, x, 0.6f, fast, true);
+    for (int q = 0; q < n; ++q) EXPECT_EQ(0, std::memcmp(&base[q], &fast[q], sizeof(float))) << round << " " << q;
+    // Ties, infinities and NaN in the distances; junk past n.
+    if (n > 3 && round % 3 == 0) {
+      base[n - 1] = base[1];
+      ++ties;
+    }
+    if (n > 4 && round % 4 == 1) base[0] = std::nanf("");
+    if (round % 7 == 3)
+      for (int q = 0; q < n; ++q) base[q] = std::numeric_limits<float>::infinity();
+    for (int q = n; q < kDiscSlots; ++q) base[q] = -1.f;  // smaller than any distance: must be ignored
+    float b0 = 0, b1 = 0;
+    const int i0 = detail::first_strict_minimum(base, n, b0, false);
+    const int i1 = detail::first_strict_minimum(base, n, b1, true);
+    EXPECT_EQ(i0, i1) << round;
+    EXPECT_EQ(0, std::memcmp(&b0, &b1, sizeof(float))) << round;
+    if (i0 >= 0) EXPECT_EQ(b0, base[i0]);
+  }
+  EXPECT_GT(ties, 50);
+}
+
 }  // namespace pm

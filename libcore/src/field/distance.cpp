@@ -144,7 +144,7 @@ namespace {
 // lateral part beyond the disc's radius rho; a disc without a normal (m = 0)
 // is a point. Slots n .. up to the next multiple of four are computed too
 // (from whatever they hold) and ignored by the caller.
-constexpr int kCandSlots = 32;  // 27 candidates, rounded up to a multiple of 8
+constexpr int kCandSlots = detail::kDiscSlots;  // 27 candidates, rounded up to a multiple of 8
 
 void disc_d2_x4(const float (&p)[3][kCandSlots], const float (&m)[3][kCandSlots], int n, const double x[3],
                 float rho, float (&out)[kCandSlots]) {
@@ -251,6 +251,34 @@ __attribute__((target("avx2"))) int first_min_x8(const float (&d)[kCandSlots], i
 #endif
 
 }  // namespace
+
+namespace detail {
+
+void disc_distances(const float (&p)[3][kDiscSlots], const float (&m)[3][kDiscSlots], int n, const double x[3],
+                    float rho, float (&out)[kDiscSlots], bool avx2) {
+#if PM_AVX2_COPIES
+  if (avx2 && cpu_has_avx2()) return disc_d2_x8(p, m, n, x, rho, out);
+#endif
+  (void)avx2;
+  disc_d2_x4(p, m, n, x, rho, out);
+}
+
+int first_strict_minimum(const float (&d)[kDiscSlots], int n, float& best, bool avx2) {
+#if PM_AVX2_COPIES
+  if (avx2 && cpu_has_avx2()) return first_min_x8(d, n, best);
+#endif
+  (void)avx2;
+  best = std::numeric_limits<float>::infinity();
+  int arg = -1;
+  for (int q = 0; q < n; ++q)
+    if (d[q] < best) {
+      best = d[q];
+      arg = q;
+    }
+  return arg;
+}
+
+}  // namespace detail
 
 std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims, const Geometry& g,
                                    const DistanceParams& p) {

@@ -53,4 +53,19 @@ Volume mask_signed_distance(const Volume& mask);
 std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims, const Geometry& g,
                                    const DistanceParams& p = {});
 
+namespace detail {
+/// The candidate search's inner kernels, exposed for the tests that hold
+/// the AVX2 copies to the baseline ones bit for bit. Up to kDiscSlots - 5
+/// candidates; p, m (disc centres and unit normals, m = 0: a point) and out
+/// hold kDiscSlots floats per row, aligned to 32 bytes.
+constexpr int kDiscSlots = 32;
+/// out[q]: squared distance from x to disc q of radius rho, q < n. avx2
+/// selects the AVX2 copy (ignored where the CPU or the build has none).
+void disc_distances(const float (&p)[3][kDiscSlots], const float (&m)[3][kDiscSlots], int n, const double x[3],
+                    float rho, float (&out)[kDiscSlots], bool avx2);
+/// Index of the first strict minimum of d[0 .. n) below +infinity (NaN never
+/// counts), -1 if none; best gets its value (+infinity if none).
+int first_strict_minimum(const float (&d)[kDiscSlots], int n, float& best, bool avx2);
+}  // namespace detail
+
 }  // namespace pm
