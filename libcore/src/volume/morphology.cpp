@@ -315,22 +315,27 @@ Indexed index_labels(const Volume& v, const std::string& what) {
   std::unordered_map<std::int64_t, std::uint16_t> ids;
   std::int64_t last = 0;
   std::uint16_t last_id = kEmpty;
-  for (std::size_t i = 0; i < n; ++i) {
-    const auto val = std::int64_t(v.get(i));
-    if (last_id == kEmpty || val != last) {
-      auto it = ids.find(val);
-      if (it == ids.end()) {
-        if (x.values.size() >= kEmpty)
-          throw InputError(what + ": more than " + std::to_string(kEmpty - 1) +
-                           " distinct labels; expected a label map");
-        it = ids.emplace(val, std::uint16_t(x.values.size())).first;
-        x.values.push_back(val);
+  visit_voxel_type(v.type(), [&](auto tag) {
+    using T = decltype(tag);
+    const T* p = v.data<T>();
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto val = std::int64_t(static_cast<double>(p[i]));
+      if (last_id == kEmpty || val != last) {
+        auto it = ids.find(val);
+        if (it == ids.end()) {
+          if (x.values.size() >= kEmpty)
+            throw InputError(what + ": more than " + std::to_string(kEmpty - 1) +
+                             " distinct labels; expected a label map");
+          it = ids.emplace(val, std::uint16_t(x.values.size())).first;
+          x.values.push_back(val);
+        }
+        last = val;
+        last_id = it->second;
       }
-      last = val;
-      last_id = it->second;
+      x.idx[i] = last_id;
     }
-    x.idx[i] = last_id;
-  }
+    return 0;
+  });
   // Renumber so that index order is label order (ties -> smallest label == smallest index).
   std::vector<std::int64_t> sorted = x.values;
   std::sort(sorted.begin(), sorted.end());
@@ -346,15 +351,42 @@ Indexed index_labels(const Volume& v, const std::string& what) {
 
 Volume write_labels(const Indexed& x, VoxelType type, const Geometry& g, std::int64_t empty_value) {
   Volume out(type, x.dims, g);
-  for (std::size_t i = 0; i < x.idx.size(); ++i)
-    out.set(i, double(x.idx[i] == kEmpty ? empty_value : x.values[x.idx[i]]));
+  // Each label's voxel value as set() stores it, then copied (no conversion per voxel).
+  Volume table(type, Dims{x.values.size() + 1, 1, 1});
+  for (std::size_t a = 0; a < x.values.size(); ++a) table.set(a, double(x.values[a]));
+  table.set(x.values.size(), double(empty_value));
+  visit_voxel_type(type, [&](auto tag) {
+    using T = decltype(tag);
+    const T* t = table.data<T>();
+    T* o = out.data<T>();
+    const std::size_t empty = x.values.size();
+    pm::parallel_for(tbb::blocked_range<std::size_t>(0, x.idx.size()), [&](const tbb::blocked_range<std::size_t>& r) {
+      for (std::size_t i = r.begin(); i != r.end(); ++i) o[i] = t[x.idx[i] == kEmpty ? empty : x.idx[i]];
+    });
+    return 0;
+  });
   return out;
 }
 
+// Voxels per label index (empty voxels not counted), by slabs in parallel.
+std::vector<std::size_t> index_counts(const Indexed& x) {
+  const std::size_t nl = x.values.size(), n = x.idx.size();
+  constexpr std::size_t kChunk = std::size_t(1) << 20;
+  const std::size_t chunks = (n + kChunk - 1) / kChunk;
+  std::vector<std::size_t> per(chunks * nl, 0);
+  pm::parallel_for(std::size_t(0), chunks, [&](std::size_t ch) {
+    std::size_t* c = per.data() + ch * nl;
+    for (std::size_t i = ch * kChunk, e = std::min(n, i + kChunk); i < e; ++i)
+      if (x.idx[i] != kEmpty) ++c[x.idx[i]];
+  });
+  std::vector<std::size_t> c(nl, 0);
+  for (std::size_t ch = 0; ch < chunks; ++ch)
+    for (std::size_t a = 0; a < nl; ++a) c[a] += per[ch * nl + a];
+  return c;
+}
+
 std::map<std::int64_t, std::size_t> counts_of(const Indexed& x) {
-  std::vector<std::size_t> c(x.values.size(), 0);
-  for (std::uint16_t v : x.idx)
-    if (v != kEmpty) ++c[v];
+  const std::vector<std::size_t> c = index_counts(x);
   std::map<std::int64_t, std::size_t> m;
   for (std::size_t a = 0; a < c.size(); ++a)
     if (c[a]) m[x.values[a]] = c[a];
@@ -478,14 +510,6 @@ Indexed downsample_indices(const Indexed& x, int k) {
     o.idx[oi] = best;
   });
   return o;
-}
-
-// Voxels per label index (empty voxels not counted).
-std::vector<std::size_t> index_counts(const Indexed& x) {
-  std::vector<std::size_t> c(x.values.size(), 0);
-  for (std::uint16_t v : x.idx)
-    if (v != kEmpty) ++c[v];
-  return c;
 }
 
 // Removes (sets empty) every 6-connected component of one label with fewer
@@ -680,10 +704,22 @@ LabelMorphResult morph_labels(const Volume& labels, const LabelMorphParams& p) {
 
   if (any_steps) {
     const Dims d = x.dims;
+    // Each label's bounding box: per slice in parallel, then merged (a union
+    // of boxes does not depend on the order).
+    std::vector<BBox> slice_boxes(d.nz * nl);
+    pm::parallel_for(std::size_t(0), d.nz, [&](std::size_t k) {
+      BBox* b = slice_boxes.data() + k * nl;
+      for (std::size_t j = 0, v = d.nx * d.ny * k; j < d.ny; ++j)
+        for (std::size_t i = 0; i < d.nx; ++i, ++v) b[x.idx[v]].add(long(i), long(j), long(k));
+    });
     std::vector<BBox> boxes(nl);
-    for (std::size_t k = 0, v = 0; k < d.nz; ++k)
-      for (std::size_t j = 0; j < d.ny; ++j)
-        for (std::size_t i = 0; i < d.nx; ++i, ++v) boxes[x.idx[v]].add(long(i), long(j), long(k));
+    for (std::size_t k = 0; k < d.nz; ++k)
+      for (std::size_t a = 0; a < nl; ++a) {
+        const BBox& b = slice_boxes[k * nl + a];
+        if (b.empty()) continue;
+        boxes[a].add(b.lo[0], b.lo[1], b.lo[2]);
+        boxes[a].add(b.hi[0], b.hi[1], b.hi[2]);
+      }
     std::vector<std::uint16_t> state(x.idx.size(), kEmpty);
     // Ascending label order: the first claimer of a voxel is the smallest; the
     // original label overrides when it claims the voxel too.
@@ -698,14 +734,21 @@ LabelMorphResult morph_labels(const Volume& labels, const LabelMorphParams& p) {
         if (x.idx[vi] == li || state[vi] == kEmpty) state[vi] = li;
       });
     }
-    for (std::size_t v = 0; v < state.size(); ++v)
-      if (state[v] == kEmpty && !processed[x.idx[v]]) state[v] = x.idx[v];
+    pm::parallel_for(tbb::blocked_range<std::size_t>(0, state.size()), [&](const tbb::blocked_range<std::size_t>& r) {
+      for (std::size_t v = r.begin(); v != r.end(); ++v)
+        if (state[v] == kEmpty && !processed[x.idx[v]]) state[v] = x.idx[v];
+    });
     // Never erase a material: a processed label its own steps left without a
     // voxel gets its input voxels back. A passive label (typically the
     // background) that other labels' dilations cover was asked for.
     std::vector<char> present(nl, 0);
-    for (std::uint16_t v : state)
-      if (v != kEmpty) present[v] = 1;
+    {
+      Indexed s_{d, x.values, {}};
+      s_.idx.swap(state);
+      const std::vector<std::size_t> c = index_counts(s_);
+      s_.idx.swap(state);
+      for (std::size_t a = 0; a < nl; ++a) present[a] = c[a] > 0;
+    }
     for (std::size_t a = 0; a < nl; ++a) {
       if (present[a] || !processed[a]) continue;
       std::size_t n = 0;
