@@ -250,32 +250,43 @@ __attribute__((target("avx2"))) int first_min_x8(const float (&d)[kCandSlots], i
 }
 #endif
 
+// The candidate search's two kernels, the AVX2 copies where `avx2` (the
+// caller has checked the CPU) and the baseline ones elsewhere.
+void candidate_distances(const float (&p)[3][kCandSlots], const float (&m)[3][kCandSlots], int n,
+                         const double x[3], float rho, float (&out)[kCandSlots], bool avx2) {
+#if PM_AVX2_COPIES
+  if (avx2) return disc_d2_x8(p, m, n, x, rho, out);
+#endif
+  (void)avx2;
+  disc_d2_x4(p, m, n, x, rho, out);
+}
+
+int first_minimum(const float (&d)[kCandSlots], int n, float& best, bool avx2) {
+#if PM_AVX2_COPIES
+  if (avx2) return first_min_x8(d, n, best);
+#endif
+  (void)avx2;
+  best = std::numeric_limits<float>::infinity();
+  int arg = -1;
+  for (int q = 0; q < n; ++q) {  // without a branch
+    const bool lt = d[q] < best;
+    best = lt ? d[q] : best;
+    arg = lt ? q : arg;
+  }
+  return arg;
+}
+
 }  // namespace
 
 namespace detail {
 
 void disc_distances(const float (&p)[3][kDiscSlots], const float (&m)[3][kDiscSlots], int n, const double x[3],
                     float rho, float (&out)[kDiscSlots], bool avx2) {
-#if PM_AVX2_COPIES
-  if (avx2 && cpu_has_avx2()) return disc_d2_x8(p, m, n, x, rho, out);
-#endif
-  (void)avx2;
-  disc_d2_x4(p, m, n, x, rho, out);
+  candidate_distances(p, m, n, x, rho, out, avx2 && cpu_has_avx2());
 }
 
 int first_strict_minimum(const float (&d)[kDiscSlots], int n, float& best, bool avx2) {
-#if PM_AVX2_COPIES
-  if (avx2 && cpu_has_avx2()) return first_min_x8(d, n, best);
-#endif
-  (void)avx2;
-  best = std::numeric_limits<float>::infinity();
-  int arg = -1;
-  for (int q = 0; q < n; ++q)
-    if (d[q] < best) {
-      best = d[q];
-      arg = q;
-    }
-  return arg;
+  return first_minimum(d, n, best, avx2 && cpu_has_avx2());
 }
 
 }  // namespace detail
@@ -568,22 +579,10 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
             }
           }
         }
-        float best = std::numeric_limits<float>::infinity();  // the first strict minimum
-#if PM_AVX2_COPIES
-        if (avx2) {
-          disc_d2_x8(cp, cm, ncand, x, rhof, cd2);
-          const int q = first_min_x8(cd2, ncand, best);
-          if (q >= 0) arg = cand[q];
-        } else
-#endif
-        {
-          disc_d2_x4(cp, cm, ncand, x, rhof, cd2);
-          for (int q = 0; q < ncand; ++q) {  // without a branch
-            const bool lt = cd2[q] < best;
-            best = lt ? cd2[q] : best;
-            arg = lt ? cand[q] : arg;
-          }
-        }
+        candidate_distances(cp, cm, ncand, x, rhof, cd2, avx2);
+        float best;  // the first strict minimum (+infinity and the nearest band node's id if none)
+        const int q = first_minimum(cd2, ncand, best, avx2);
+        if (q >= 0) arg = cand[q];
         site[c] = arg;
         sq[c] = best;
       }

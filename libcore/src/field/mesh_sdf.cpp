@@ -69,8 +69,8 @@ MeshSdfGrid mesh_sdf_grid(const Mesh& m, const MeshSdfParams& p) {
 }
 
 Volume mesh_to_sdf(const Mesh& m, const MeshSdfParams& p) {
-  mesh_sdf_grid(m, p);  // the checks (and the grid) without loading OpenVDB
-  return openvdb_plugin().mesh_to_sdf(m, p);
+  const MeshSdfGrid grid = mesh_sdf_grid(m, p);  // the checks, before OpenVDB is loaded
+  return openvdb_plugin().mesh_to_sdf(m, p, grid);
 }
 
 }  // namespace pm

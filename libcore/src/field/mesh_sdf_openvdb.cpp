@@ -11,8 +11,7 @@
 
 namespace pm {
 
-Volume openvdb_mesh_to_sdf(const Mesh& m, const MeshSdfParams& p) {
-  const MeshSdfGrid grid_box = mesh_sdf_grid(m, p);
+Volume openvdb_mesh_to_sdf(const Mesh& m, const MeshSdfParams& p, const MeshSdfGrid& grid_box) {
   const Dims& dims = grid_box.dims;
   const Vec3& origin = grid_box.origin;
   ensure_openvdb_initialized();

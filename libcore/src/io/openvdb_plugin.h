@@ -14,13 +14,14 @@
 namespace pm {
 
 /// Bumped whenever the table or a signature changes.
-constexpr int kOpenVdbPluginAbi = 1;
+constexpr int kOpenVdbPluginAbi = 2;
 
 struct OpenVdbPlugin {
   int abi = kOpenVdbPluginAbi;
   Volume (*read)(const std::string& path, const std::string& grid_name) = nullptr;
   void (*write)(const Volume& v, const std::string& path, const std::string& grid_name) = nullptr;
-  Volume (*mesh_to_sdf)(const Mesh& m, const MeshSdfParams& p) = nullptr;
+  /// On `grid`, mesh_sdf_grid(m, p) (which has checked m and p).
+  Volume (*mesh_to_sdf)(const Mesh& m, const MeshSdfParams& p, const MeshSdfGrid& grid) = nullptr;
   /// The triangles (quads split along the shorter diagonal) of the level
   /// g = iso of the volume, g = F or -F (material below or above iso).
   Mesh (*marching_cubes)(const Volume& v, double iso, bool material_below) = nullptr;
@@ -33,7 +34,7 @@ const OpenVdbPlugin& openvdb_plugin();
 // Defined in the plugin.
 Volume openvdb_read(const std::string& path, const std::string& grid_name);
 void openvdb_write(const Volume& v, const std::string& path, const std::string& grid_name);
-Volume openvdb_mesh_to_sdf(const Mesh& m, const MeshSdfParams& p);
+Volume openvdb_mesh_to_sdf(const Mesh& m, const MeshSdfParams& p, const MeshSdfGrid& grid);
 Mesh openvdb_marching_cubes(const Volume& v, double iso, bool material_below);
 /// openvdb::initialize(), once (thread-safe).
 void ensure_openvdb_initialized();

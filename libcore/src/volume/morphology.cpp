@@ -368,22 +368,23 @@ Volume write_labels(const Indexed& x, VoxelType type, const Geometry& g, std::in
   return out;
 }
 
-// Voxels per label index (empty voxels not counted), by slabs in parallel.
-std::vector<std::size_t> index_counts(const Indexed& x) {
-  const std::size_t nl = x.values.size(), n = x.idx.size();
+// Voxels per label index (of nl; empty voxels not counted), by slabs in parallel.
+std::vector<std::size_t> index_counts(const std::vector<std::uint16_t>& idx, std::size_t nl) {
+  const std::size_t n = idx.size();
   constexpr std::size_t kChunk = std::size_t(1) << 20;
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
   std::vector<std::size_t> per(chunks * nl, 0);
   pm::parallel_for(std::size_t(0), chunks, [&](std::size_t ch) {
     std::size_t* c = per.data() + ch * nl;
     for (std::size_t i = ch * kChunk, e = std::min(n, i + kChunk); i < e; ++i)
-      if (x.idx[i] != kEmpty) ++c[x.idx[i]];
+      if (idx[i] != kEmpty) ++c[idx[i]];
   });
   std::vector<std::size_t> c(nl, 0);
   for (std::size_t ch = 0; ch < chunks; ++ch)
     for (std::size_t a = 0; a < nl; ++a) c[a] += per[ch * nl + a];
   return c;
 }
+std::vector<std::size_t> index_counts(const Indexed& x) { return index_counts(x.idx, x.values.size()); }
 
 std::map<std::int64_t, std::size_t> counts_of(const Indexed& x) {
   const std::vector<std::size_t> c = index_counts(x);
@@ -743,10 +744,7 @@ LabelMorphResult morph_labels(const Volume& labels, const LabelMorphParams& p) {
     // background) that other labels' dilations cover was asked for.
     std::vector<char> present(nl, 0);
     {
-      Indexed s_{d, x.values, {}};
-      s_.idx.swap(state);
-      const std::vector<std::size_t> c = index_counts(s_);
-      s_.idx.swap(state);
+      const std::vector<std::size_t> c = index_counts(state, nl);
       for (std::size_t a = 0; a < nl; ++a) present[a] = c[a] > 0;
     }
     for (std::size_t a = 0; a < nl; ++a) {
