@@ -112,6 +112,49 @@ TEST(MedialAxis, TightenedEllipsoidMask) {
   EXPECT_LE(double(r.points.vertices.size()), 1.5 * area);
 }
 
+TEST(MedialAxis, OneSideGivesThatSidesPointsOfBothForLessWork) {
+  // Two balls of radius 6 whose centres are 15 apart: an inner MA at each
+  // centre, an outer one on the plane between them. Each side alone must find
+  // exactly the points `both` finds on it, in the same order (only the other
+  // side's far nodes are skipped).
+  const Vec3 c1(-7.5, 0.23, -0.31), c2(7.5, 0.23, -0.31);
+  const Geometry g = Geometry::with_spacing(1, 1, 1, Vec3(-17, -11, -11));
+  const Volume sdf = sample({35, 23, 23}, g, [&](const Vec3& x) { return std::min(norm(x - c1), norm(x - c2)) - 6; });
+  const MedialAxisResult all = medial_axis(sdf);
+  ASSERT_GT(all.inner, 0u);
+  ASSERT_GT(all.outer, 50u);
+  for (const bool inner : {true, false}) {
+    MedialAxisParams p;
+    p.inside = inner;
+    p.outside = !inner;
+    const MedialAxisResult one = medial_axis(sdf, p);
+    std::vector<Vec3> want;
+    std::vector<double> want_d;
+    for (std::size_t i = 0; i < all.points.vertices.size(); ++i) {
+      const Vec3& x = all.points.vertices[i];
+      const bool in = std::min(norm(x - c1), norm(x - c2)) < 6;
+      if (in == inner) {
+        want.push_back(x);
+        want_d.push_back(distances(all)[i]);
+      }
+    }
+    ASSERT_EQ(one.points.vertices.size(), want.size()) << (inner ? "inside" : "outside");
+    EXPECT_EQ(inner ? one.inner : one.outer, want.size());
+    for (std::size_t i = 0; i < want.size(); ++i) {
+      EXPECT_EQ(one.points.vertices[i].x, want[i].x);
+      EXPECT_EQ(one.points.vertices[i].y, want[i].y);
+      EXPECT_EQ(one.points.vertices[i].z, want[i].z);
+      EXPECT_EQ(distances(one)[i], want_d[i]);
+    }
+    // The inner side skips the outer nodes farther than 3.5 voxel diagonals;
+    // the balls are too thin for the outer side to skip any inner ones.
+    if (inner)
+      EXPECT_LT(one.nodes_refined, all.nodes_refined);
+    else
+      EXPECT_EQ(one.nodes_refined, all.nodes_refined);
+  }
+}
+
 TEST(MedialAxis, AnisotropicSpacing) {
   const double t = 6;
   const Geometry g = Geometry::with_spacing(2.0, 1.5, 0.5, Vec3(-10, -9, -5.1));

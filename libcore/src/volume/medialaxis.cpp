@@ -88,6 +88,12 @@ MedialAxisResult medial_axis(const Volume& sdf, const MedialAxisParams& p) {
   // node sees what it would see on the whole grid.
   const double diag = std::sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
   const double test_d = p.max_distance, fill_d = test_d + 2.5 * diag, foot_d = test_d + 3.5 * diag;
+  // With one side only, the other side's nodes are needed just as far as a
+  // tested node reads (the same 2.5 and 3.5 diagonals, now from the surface):
+  // the points found are the same, and a material's outer side (mostly the
+  // whole rest of the volume) costs nothing.
+  const double foot_lo = p.inside ? -foot_d : -3.5 * diag, foot_hi = p.outside ? foot_d : 3.5 * diag;
+  const double fill_lo = p.inside ? -fill_d : -2.5 * diag, fill_hi = p.outside ? fill_d : 2.5 * diag;
   const Vec3 ex = e[0] / (2 * h[0]), ey = e[1] / (2 * h[1]), ez = e[2] / (2 * h[2]);  // central differences
 
   // Foot point of x from the guess p = x - f n0 (f: value at x, n0: unit
@@ -194,7 +200,7 @@ MedialAxisResult medial_axis(const Volume& sdf, const MedialAxisParams& p) {
       for (std::size_t i = 0; i < nx; ++i) {
         const std::size_t c = i + sy * j + sz * k;
         const double dq = d[c];
-        if (!(std::fabs(dq) <= foot_d)) continue;
+        if (!(dq >= foot_lo && dq <= foot_hi)) continue;
         const Vec3 g0 = cd(i, j, k);
         const double l0 = norm(g0);
         Vec3 dirs[6];
@@ -233,7 +239,7 @@ MedialAxisResult medial_axis(const Volume& sdf, const MedialAxisParams& p) {
     for (std::size_t j = 0; j < ny; ++j)
       for (std::size_t i = 0; i < nx; ++i) {
         const std::size_t c = i + sy * j + sz * k;
-        if (ok[c] || !(std::fabs(d[c]) <= fill_d)) continue;
+        if (ok[c] || !(d[c] >= fill_lo && d[c] <= fill_hi)) continue;
         const Vec3 q = g.index_to_world(Vec3(double(i), double(j), double(k)));
         double best = 1e300;
         Vec3 bp;
