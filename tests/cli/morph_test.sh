@@ -45,6 +45,11 @@ assert abs(L["1"] - 232028 * r) < 0.02 * 232028 * r, L
 assert abs(L["2"] - 16348 * r) < 0.15 * 16348 * r, L
 PY
 
+# --labels all: every label present (mickey has no 0: labels 1-5), the same file as the list.
+"$MO" "$M" "$T/all.nrrd" --labels all --ops "close:f2,open:f1" --downsample 2 --vote -q
+"$MO" "$M" "$T/list.nrrd" --labels 1-5 --ops "close:f2,open:f1" --downsample 2 --vote -q
+cmp "$T/all.nrrd" "$T/list.nrrd"
+
 # 3. Grey values: block mean.
 "$MO" "$SRC/data/cgal-skull/skull_2.9.inr" "$T/g.nrrd" --grey --downsample 2 -q
 "$VC" --info "$SRC/data/cgal-skull/skull_2.9.inr" > "$T/g0.json"

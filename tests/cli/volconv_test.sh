@@ -101,6 +101,16 @@ for k, n in c0["labels"].items():
     if k != bg: assert c1["labels"][k] == n, (k, n)
 PY
 
+# --type smallest: mickey's uint16 labels 1-5 fit uint8, with the same counts.
+"$VC" "$M" "$T/small.nrrd" --type smallest
+info "$T/small.nrrd" > "$T/small.json"
+python3 - "$T/m.json" "$T/small.json" <<'PY'
+import json, sys
+m, s = (json.load(open(p)) for p in sys.argv[1:3])
+assert m["type"] != "uint8" and s["type"] == "uint8", (m["type"], s["type"])
+assert s["labels"] == m["labels"] and s["dims"] == m["dims"], (s["labels"], m["labels"])
+PY
+
 # 3. Signed distance of a closed mesh: negative inside, positive outside, |grad| ~ 1.
 "$VC" "$SRC/data/cgal-meshes/knot1.off" "$T/knot.nrrd" --sdf --voxel 0.5 --stats "$T/sdf.json" -q
 info "$T/knot.nrrd" > "$T/k.json"
@@ -113,6 +123,10 @@ PY
 
 # 4. A failed run leaves no output and no temporary file.
 mkdir "$T/fail"
+# --type smallest is for integer volumes: a float one is refused, naming the file.
+if "$VC" "$T/knot.nrrd" "$T/fail/out.nrrd" --type smallest 2> "$T/err.txt"; then echo "float --type smallest accepted"; exit 1; fi
+grep -q "knot.nrrd.*--type smallest.*float voxels; expected an integer volume" "$T/err.txt" || { cat "$T/err.txt"; exit 1; }
+[ -z "$(ls -A "$T/fail")" ] || { echo "left behind: $(ls -A "$T/fail")"; exit 1; }
 if "$VC" "$SRC/tests/data/truncated.nrrd" "$T/fail/out.nrrd" 2>/dev/null; then echo "truncated input accepted"; exit 1; fi
 [ -z "$(ls -A "$T/fail")" ] || { echo "left behind: $(ls -A "$T/fail")"; exit 1; }
 echo "volconv workflow: ok"

@@ -184,6 +184,13 @@ TEST(Morphology, LabelsOpeningLeavesEmptyVoxelsForVoting) {
   EXPECT_EQ(r.kept[0].label, 0);
   EXPECT_EQ(r.kept[0].stage, "morphology");
   EXPECT_EQ(r.kept[0].voxels, shell);
+  // all_labels: every label present, 0 included, as the explicit list.
+  LabelMorphParams all = p;
+  all.labels.clear();
+  all.all_labels = true;
+  const LabelMorphResult a = morph_labels(v, all);
+  EXPECT_EQ(a.counts_after, r.counts_after);
+  for (std::size_t c = 0; c < v.count(); ++c) ASSERT_EQ(a.labels.get(c), r.labels.get(c)) << c;
   p.labels = {7};
   EXPECT_THROW(morph_labels(v, p), InputError);
 }

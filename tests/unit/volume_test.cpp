@@ -189,6 +189,32 @@ TEST(Volume, TypeNames) {
   EXPECT_THROW(parse_voxel_type("complex"), UsageError);
 }
 
+TEST(Volume, SmallestIntegerTypeHoldsEveryValue) {
+  auto with = [](VoxelType t, double lo, double hi) {
+    Volume v(t, Dims{2, 1, 1});
+    v.set(0, lo);
+    v.set(1, hi);
+    return smallest_integer_type(v);
+  };
+  EXPECT_EQ(with(VoxelType::i32, 0, 255), VoxelType::u8);
+  EXPECT_EQ(with(VoxelType::i32, 0, 256), VoxelType::u16);
+  EXPECT_EQ(with(VoxelType::u16, 0, 65535), VoxelType::u16);
+  EXPECT_EQ(with(VoxelType::i32, 0, 65536), VoxelType::u32);
+  EXPECT_EQ(with(VoxelType::i32, -1, 127), VoxelType::i8);
+  EXPECT_EQ(with(VoxelType::i32, -1, 128), VoxelType::i16);
+  EXPECT_EQ(with(VoxelType::i32, -32769, 0), VoxelType::i32);
+  EXPECT_EQ(with(VoxelType::i64, -1, 4294967295.0), VoxelType::i64);  // nothing smaller holds both
+  // Converting to it keeps every value.
+  Volume v(VoxelType::i32, Dims{3, 1, 1});
+  v.set(0, 0);
+  v.set(1, 4);
+  v.set(2, 200);
+  const Volume c = v.converted(smallest_integer_type(v));
+  EXPECT_EQ(c.type(), VoxelType::u8);
+  for (std::size_t i = 0; i < 3; ++i) EXPECT_EQ(c.get(i), v.get(i));
+  EXPECT_THROW(smallest_integer_type(Volume(VoxelType::f32, Dims{2, 2, 2})), InputError);
+}
+
 TEST(Volume, WorldSignsMapRasAndLpsBothWays) {
   Geometry g = Geometry::with_spacing(0.5, 2, 3, {10, 0, 30});
   g.directions[0][1] = 0.25;

@@ -309,7 +309,7 @@ class Stage:
 
     def materials_labels(self):
         v = self.v
-        args = [self.tool("volconv"), self.input, self.out("labels.nrrd"), "--type", "int32"]
+        args = [self.tool("volconv"), self.input, self.out("labels.nrrd"), "--type", "smallest"]
         if v["MERGE"]:
             args += ["--merge", v["MERGE"]]
         if v["MIN_VOXELS"] != "0":
@@ -325,10 +325,7 @@ class Stage:
             self.commands.append(shlex.join(["cp", src, self.out("morph.nrrd")]))
             shutil.copyfile(src, self.out("morph.nrrd"))
             return None
-        self.run([self.tool("volconv"), "--info", src], self.out("labels_info.json"))
-        with open(self.out("labels_info.json")) as f:
-            labels = ",".join(sorted(json.load(f)["labels"], key=int))
-        self.run([self.tool("morph"), src, self.out("morph.nrrd"), "--labels", labels]
+        self.run([self.tool("morph"), src, self.out("morph.nrrd"), "--labels", "all"]
                  + (["--ops", v["MORPH_OPS"]] if v["MORPH_OPS"] != "none" else [])
                  + (["--downsample", v["DOWNSAMPLE"]] if v["DOWNSAMPLE"] != "1" else [])
                  + ["--vote"] + self.flags + ["--stats", self.out("morph.json")])

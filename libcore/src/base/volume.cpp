@@ -241,6 +241,23 @@ ValueRange value_range(const Volume& v) {
   return r;
 }
 
+VoxelType smallest_integer_type(const Volume& v) {
+  if (!is_integer(v.type()))
+    throw InputError(std::string("smallest integer type: the volume holds ") + voxel_type_name(v.type()) +
+                     " voxels; expected an integer volume (a label map)");
+  if (v.count() == 0) return VoxelType::u8;
+  const ValueRange r = value_range(v);
+  const VoxelType unsigned_types[] = {VoxelType::u8, VoxelType::u16, VoxelType::u32};
+  const VoxelType signed_types[] = {VoxelType::i8, VoxelType::i16, VoxelType::i32};
+  const double lo_s[] = {-128.0, -32768.0, -2147483648.0}, hi_s[] = {127.0, 32767.0, 2147483647.0};
+  const double hi_u[] = {255.0, 65535.0, 4294967295.0};
+  for (int b = 0; b < 3; ++b) {
+    if (r.lo >= 0 && r.hi <= hi_u[b]) return unsigned_types[b];
+    if (r.lo < 0 && r.lo >= lo_s[b] && r.hi <= hi_s[b]) return signed_types[b];
+  }
+  return v.type();
+}
+
 Volume padded(const Volume& v, std::size_t n, double value) {
   const Dims& d = v.dims();
   const Dims e{d.nx + 2 * n, d.ny + 2 * n, d.nz + 2 * n};

@@ -50,8 +50,8 @@ void add_morph_options(CLI::App& app, MorphRun& cfg) {
                  "Operation sequence instead of --op, op:stencil[:N] left to right, e.g. "
                  "\"close:f4,open:f2\"; \"L=...\" entries (separated by ';') apply to label L");
   app.add_option("--labels", cfg.labels,
-                 "Labels to process, e.g. \"1,2\" or \"0-4\" (default: every non-zero "
-                 "label; others are passive: they keep what nobody claims)");
+                 "Labels to process, e.g. \"1,2\" or \"0-4\", or \"all\" (every label present, 0 "
+                 "included) (default: every non-zero label; others are passive: they keep what nobody claims)");
   app.add_option("--downsample", cfg.params.downsample,
                  "Integer factor K: K^3 voxels per output voxel (labels: "
                  "majority; with --grey: mean); spacing x K")
@@ -85,7 +85,10 @@ void run_morph(MorphRun& cfg, const CommonFlags& flags) {
     throw pm::UsageError("--downsample " + std::to_string(p.downsample) + "; expected an integer >= 1");
   if (!op.empty()) p.steps = {pm::MorphStep{pm::parse_morph_op(op), pm::parse_stencil(stencil), iterations}};
   if (!ops.empty()) parse_ops(ops, p);
-  if (!labels.empty()) p.labels = pm::parse_label_list(labels);
+  if (labels == "all")
+    p.all_labels = true;
+  else if (!labels.empty())
+    p.labels = pm::parse_label_list(labels);
   const bool morph = !p.steps.empty() || !p.per_label.empty();
   if (!morph && p.downsample == 1 && !p.vote && p.min_component < 2)
     throw pm::UsageError("nothing to do; expected --op, --ops, --downsample K > 1, --vote or --min-component N");

@@ -107,7 +107,9 @@ void add_volconv_options(CLI::App& app, VolConvRun& cfg) {
                  "neighbouring label (0 = keep all)")
       ->capture_default_str();
   app.add_flag("--allow-nonfinite", cfg.allow_nonfinite, "Copy NaN/Inf voxels instead of refusing the input");
-  app.add_option("--type", cfg.type, "Convert the voxel type: uint8 int8 uint16 int16 uint32 int32 float double");
+  app.add_option("--type", cfg.type,
+                 "Convert the voxel type: uint8 int8 uint16 int16 uint32 int32 float double, or smallest = the "
+                 "smallest integer type holding every value (label maps: uint8 for labels 0-255)");
 }
 
 void run_volconv(VolConvRun& cfg, const CommonFlags& flags, const CLI::App& app) {
@@ -256,7 +258,15 @@ void run_volconv(VolConvRun& cfg, const CommonFlags& flags, const CLI::App& app)
     v = pm::padded(v, pad_voxels, value);
     st["pad"] = {{"voxels", pad_voxels}, {"value", value}};
   }
-  if (!type.empty()) v = v.converted(pm::parse_voxel_type(type));
+  if (type == "smallest") {
+    try {
+      v = v.converted(pm::smallest_integer_type(v));
+    } catch (const pm::InputError& e) {
+      throw pm::InputError(pm::quote(in) + ": --type smallest: " + e.what());
+    }
+  } else if (!type.empty()) {
+    v = v.converted(pm::parse_voxel_type(type));
+  }
   pm::write_volume(v, out);
   st["outputs"] = {out};
   st["counts"] = {{"voxels", v.count()}};

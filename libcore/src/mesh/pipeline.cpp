@@ -494,7 +494,7 @@ MaterialsPipelineResult mesh_materials_pipeline(const Volume& in, const Material
   const bool morph = !(p.morph_ops == "none" && p.downsample == 1);
   Stages stages("ch6", (morph ? 6 : 5) + (p.spacing > 0 ? 0 : 2), p.progress, res.seconds);
 
-  // volconv --type int32 [--merge] [--min-voxels] [--pad --pad-value]
+  // volconv --type smallest [--merge] [--min-voxels] [--pad --pad-value]
   Volume lv;
   stages.run("labels", [&] {
     lv = in;
@@ -520,15 +520,15 @@ MaterialsPipelineResult mesh_materials_pipeline(const Volume& in, const Material
       if (border_padding(lv).pad) pad = kAutoPadVoxels * std::size_t(p.downsample);
     }
     if (pad > 0) lv = padded(lv, pad, pad_value_of(lv, pad_value, what));
-    lv = lv.converted(VoxelType::i32);
+    lv = lv.converted(smallest_integer_type(lv));
   });
-  // morph --labels <all> --ops MORPH_OPS [--downsample] --vote
+  // morph --labels all --ops MORPH_OPS [--downsample] --vote
   if (morph) {
     stages.run("morphology", [&] {
       LabelMorphParams mp;
       try {
         require_labels(lv, what);
-        for (const auto& [l, n] : label_counts(lv)) mp.labels.push_back(l);
+        mp.all_labels = true;
         if (p.morph_ops != "none") mp.steps = parse_morph_steps(p.morph_ops);
         mp.downsample = p.downsample;
         mp.vote = true;

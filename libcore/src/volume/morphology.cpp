@@ -684,7 +684,9 @@ LabelMorphResult morph_labels(const Volume& labels, const LabelMorphParams& p) {
     }
     return InputError(m.str());
   };
-  if (p.labels.empty()) {
+  if (p.all_labels) {
+    for (std::size_t a = 0; a < nl; ++a) processed[a] = 1;
+  } else if (p.labels.empty()) {
     for (std::size_t a = 0; a < nl; ++a) processed[a] = x.values[a] != 0;
   } else {
     for (std::int64_t l : p.labels) {

@@ -175,6 +175,11 @@ struct ValueRange {
   double lo = 0, hi = 0;
 };
 ValueRange value_range(const Volume& v);
+/// The smallest integer voxel type holding every value of an integer volume:
+/// uint8, uint16, uint32 (no negative values) or int8, int16, int32; the
+/// volume's own type when none of these does (64-bit values).
+/// \throw InputError for a volume of float or double voxels.
+VoxelType smallest_integer_type(const Volume& v);
 
 /// `v` grown by n voxels on every side of every axis, the new voxels set to
 /// `value`; the origin moves by -n steps along each axis so every old voxel

@@ -102,6 +102,7 @@ struct LabelMorphParams {
   /// Processed labels; empty = every non-zero label present. Labels listed
   /// but absent are an error.
   std::vector<std::int64_t> labels;
+  bool all_labels = false;  ///< process every label present, 0 included (overrides `labels`)
   int downsample = 1;     ///< integer factor >= 1 (voxels per output voxel per axis)
   bool vote = false;      ///< fill empty voxels by voting
   std::int64_t fill = 0;  ///< value of empty voxels when vote is false
