@@ -1,11 +1,12 @@
 #include "pm/mesh/meshstats_materials.h"
 
 #include <algorithm>
+#include <map>
 #include <set>
 #include <sstream>
-#include <unordered_map>
 
 #include "pm/base/error.h"
+#include "pm/base/parallel.h"
 
 namespace pm {
 
@@ -79,26 +80,35 @@ InterfaceQuality interface_quality(const Mesh& m, const MeshQualityParams& p) {
     q.overall.crease_share_20 = pooled.share();
   }
 
-  // Edges -> incident faces.
-  std::unordered_map<std::uint64_t, std::vector<int>> ef;
-  ef.reserve(m.faces.size() * 2);
+  // Edges -> incident faces: (edge key, face) sorted by key, one group per
+  // edge (the counts below do not depend on the order within a group).
+  std::vector<std::pair<std::uint64_t, int>> ef;
+  ef.reserve(m.faces.size() * 3);
   for (std::size_t f = 0; f < m.faces.size(); ++f)
     for (int e = 0; e < 3; ++e) {
       std::uint64_t u = std::uint32_t(m.faces[f][e]), v = std::uint32_t(m.faces[f][(e + 1) % 3]);
       if (u > v) std::swap(u, v);
-      ef[(u << 32) | v].push_back(int(f));
+      ef.emplace_back((u << 32) | v, int(f));
     }
-  q.edges = ef.size();
+  std::sort(ef.begin(), ef.end());
   const auto junction = m.vertex_scalars.find("junction");
   std::size_t jv = 0, jv_ok = 0;
-  for (const auto& [key, fs] : ef) {
-    if (fs.size() == 1) {
+  std::map<int, int> sides;  // material -> faces of the edge bounding it
+  for (std::size_t g = 0; g < ef.size();) {
+    const std::uint64_t key = ef[g].first;
+    std::size_t e = g;
+    while (e < ef.size() && ef[e].first == key) ++e;
+    const std::size_t nf = e - g;
+    ++q.edges;
+    if (nf == 1) {
       ++q.boundary_edges;
       ++q.bad_edges;
+      g = e;
       continue;
     }
-    std::map<int, int> sides;  // material -> faces of this edge bounding it
-    for (int f : fs) {
+    sides.clear();
+    for (std::size_t i = g; i < e; ++i) {
+      const int f = ef[i].second;
       if (a[f] == b[f]) continue;
       ++sides[a[f]];
       ++sides[b[f]];
@@ -107,7 +117,7 @@ InterfaceQuality interface_quality(const Mesh& m, const MeshQualityParams& p) {
     for (const auto& [l, n] : sides)
       if (n != 2) ok = false;
     if (!ok) ++q.bad_edges;
-    if (fs.size() >= 3 && sides.size() >= 3) {
+    if (nf >= 3 && sides.size() >= 3) {
       ++q.junction_edges;
       if (junction != m.vertex_scalars.end()) {
         for (std::uint64_t v : {key >> 32, key & 0xffffffffu}) {
@@ -116,9 +126,16 @@ InterfaceQuality interface_quality(const Mesh& m, const MeshQualityParams& p) {
         }
       }
     }
+    g = e;
   }
   if (jv > 0) q.junction_vertex_share = double(jv_ok) / double(jv);
-  for (int l : labels) q.materials.emplace(l, mesh_quality(material_from_interfaces(m, l), p));
+  // Each material's closed surface on its own, side by side (each report
+  // lands in its label's slot: the same for any schedule).
+  const std::vector<int> ls(labels.begin(), labels.end());
+  std::vector<MeshQuality> per(ls.size());
+  pm::parallel_for(std::size_t(0), ls.size(),
+                   [&](std::size_t i) { per[i] = mesh_quality(material_from_interfaces(m, ls[i]), p); });
+  for (std::size_t i = 0; i < ls.size(); ++i) q.materials.emplace(ls[i], std::move(per[i]));
   return q;
 }
 
