@@ -13,11 +13,16 @@
 #include <set>
 #include <sstream>
 
+#include "pm/base/cpu.h"
 #include "pm/base/error.h"
 #include "pm/base/log.h"
 #include "pm/base/parallel.h"
 #include "pm/base/stats.h"
 #include "pm/field/distance.h"
+
+#if PM_AVX2_COPIES
+#include <immintrin.h>
+#endif
 
 namespace pm {
 
@@ -109,6 +114,128 @@ struct Band {
   std::size_t size() const { return active.size(); }
 };
 
+// The flow's update at one active node (see flow_step): the new value,
+// clamped between lo and hi, in double.
+inline double flow_value(const float* r, const std::ptrdiff_t* o, double ix, double iy, double iz, double dt,
+                         float lo, float hi) {
+  const double f = r[0];
+  const double fxp = r[o[0]], fxm = r[o[1]], fyp = r[o[2]], fym = r[o[3]];
+  const double fzp = r[o[4]], fzm = r[o[5]];
+  const double px = 0.5 * (fxp - fxm) * ix, py = 0.5 * (fyp - fym) * iy, pz = 0.5 * (fzp - fzm) * iz;
+  const double pxx = (fxp - 2 * f + fxm) * ix * ix, pyy = (fyp - 2 * f + fym) * iy * iy,
+               pzz = (fzp - 2 * f + fzm) * iz * iz;
+  const double pxy = 0.25 * (r[o[6]] - r[o[7]] - r[o[8]] + r[o[9]]) * ix * iy;
+  const double pxz = 0.25 * (r[o[10]] - r[o[11]] - r[o[12]] + r[o[13]]) * ix * iz;
+  const double pyz = 0.25 * (r[o[14]] - r[o[15]] - r[o[16]] + r[o[17]]) * iy * iz;
+  const double gx2 = px * px, gy2 = py * py, gz2 = pz * pz, g2 = gx2 + gy2 + gz2;
+  const double num = pxx * (gy2 + gz2) + pyy * (gx2 + gz2) + pzz * (gx2 + gy2) -
+                     2 * (px * py * pxy + px * pz * pxz + py * pz * pyz);
+  const double v = f + dt * num / (g2 + 1e-12);
+  return std::min(std::max(v, double(lo)), double(hi));
+}
+
+// How far the zero set moved at node r (new value v): |v - f| where a face
+// neighbour lies across it and |f| < near, else 0.
+inline double zero_set_move(const float* r, const std::ptrdiff_t* o, double v, double near) {
+  const double f = r[0];
+  const bool neg = f < 0;
+  bool across = false;
+  for (int k = 0; k < 6; ++k) across |= (r[o[k]] < 0) != neg;
+  return std::fabs(f) < near && across ? std::fabs(v - f) : 0.0;
+}
+
+#if PM_AVX2_COPIES
+#define PM_AVX2 __attribute__((target("avx2")))
+// Four floats at c[0..3] + off, widened to double: plain loads when the four
+// nodes are consecutive along x, else a gather.
+PM_AVX2 inline __m256d flow_at_x4(const float* cur, const std::uint32_t* c, __m128i idx, bool run,
+                                  std::ptrdiff_t off) {
+  if (run) return _mm256_cvtps_pd(_mm_loadu_ps(cur + c[0] + off));
+  return _mm256_cvtps_pd(_mm_i32gather_ps(cur, _mm_add_epi32(idx, _mm_set1_epi32(std::int32_t(off))), 4));
+}
+PM_AVX2 inline __m128 flow_at_x4f(const float* cur, const std::uint32_t* c, __m128i idx, bool run,
+                                  std::ptrdiff_t off) {
+  if (run) return _mm_loadu_ps(cur + c[0] + off);
+  return _mm_i32gather_ps(cur, _mm_add_epi32(idx, _mm_set1_epi32(std::int32_t(off))), 4);
+}
+// ((a - b) - c) + d in float, widened: flow_value's edge sums.
+PM_AVX2 inline __m256d flow_edge_x4(const float* cur, const std::uint32_t* c, __m128i idx, bool run,
+                                    const std::ptrdiff_t* o) {
+  const __m128 s = _mm_add_ps(_mm_sub_ps(_mm_sub_ps(flow_at_x4f(cur, c, idx, run, o[0]), flow_at_x4f(cur, c, idx, run, o[1])),
+                                         flow_at_x4f(cur, c, idx, run, o[2])),
+                              flow_at_x4f(cur, c, idx, run, o[3]));
+  return _mm256_cvtps_pd(s);
+}
+
+// flow_value at four active nodes c[0..3] (AVX2, chosen at run time): the
+// same IEEE operations in the same order on every lane (the edge sums in
+// float, no FMA), so the same doubles; written to next as floats. Returns
+// the largest zero_set_move of the four (NaN moves ignored, as std::max
+// ignores them there).
+PM_AVX2 double flow_values_x4(const float* cur, float* next, const std::uint32_t* c, const std::ptrdiff_t* o,
+                              double ix, double iy, double iz, double dt, const float* lo, const float* hi,
+                              double near) {
+  const bool run = c[3] == c[0] + 3 && c[1] == c[0] + 1 && c[2] == c[0] + 2;
+  const __m128i idx = _mm_loadu_si128(reinterpret_cast<const __m128i*>(c));
+  const __m256d f = flow_at_x4(cur, c, idx, run, 0);
+  const __m256d fxp = flow_at_x4(cur, c, idx, run, o[0]), fxm = flow_at_x4(cur, c, idx, run, o[1]);
+  const __m256d fyp = flow_at_x4(cur, c, idx, run, o[2]), fym = flow_at_x4(cur, c, idx, run, o[3]);
+  const __m256d fzp = flow_at_x4(cur, c, idx, run, o[4]), fzm = flow_at_x4(cur, c, idx, run, o[5]);
+  const __m256d half = _mm256_set1_pd(0.5), two = _mm256_set1_pd(2.0), quarter = _mm256_set1_pd(0.25);
+  const __m256d vx = _mm256_set1_pd(ix), vy = _mm256_set1_pd(iy), vz = _mm256_set1_pd(iz);
+  const __m256d px = _mm256_mul_pd(_mm256_mul_pd(half, _mm256_sub_pd(fxp, fxm)), vx);
+  const __m256d py = _mm256_mul_pd(_mm256_mul_pd(half, _mm256_sub_pd(fyp, fym)), vy);
+  const __m256d pz = _mm256_mul_pd(_mm256_mul_pd(half, _mm256_sub_pd(fzp, fzm)), vz);
+  const __m256d f2 = _mm256_mul_pd(two, f);
+  const __m256d pxx = _mm256_mul_pd(_mm256_mul_pd(_mm256_add_pd(_mm256_sub_pd(fxp, f2), fxm), vx), vx);
+  const __m256d pyy = _mm256_mul_pd(_mm256_mul_pd(_mm256_add_pd(_mm256_sub_pd(fyp, f2), fym), vy), vy);
+  const __m256d pzz = _mm256_mul_pd(_mm256_mul_pd(_mm256_add_pd(_mm256_sub_pd(fzp, f2), fzm), vz), vz);
+  const __m256d pxy = _mm256_mul_pd(_mm256_mul_pd(_mm256_mul_pd(quarter, flow_edge_x4(cur, c, idx, run, o + 6)), vx), vy);
+  const __m256d pxz = _mm256_mul_pd(_mm256_mul_pd(_mm256_mul_pd(quarter, flow_edge_x4(cur, c, idx, run, o + 10)), vx), vz);
+  const __m256d pyz = _mm256_mul_pd(_mm256_mul_pd(_mm256_mul_pd(quarter, flow_edge_x4(cur, c, idx, run, o + 14)), vy), vz);
+  const __m256d gx2 = _mm256_mul_pd(px, px), gy2 = _mm256_mul_pd(py, py), gz2 = _mm256_mul_pd(pz, pz);
+  const __m256d g2 = _mm256_add_pd(_mm256_add_pd(gx2, gy2), gz2);
+  const __m256d a = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(pxx, _mm256_add_pd(gy2, gz2)),
+                                                _mm256_mul_pd(pyy, _mm256_add_pd(gx2, gz2))),
+                                  _mm256_mul_pd(pzz, _mm256_add_pd(gx2, gy2)));
+  const __m256d b = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(_mm256_mul_pd(px, py), pxy),
+                                                _mm256_mul_pd(_mm256_mul_pd(px, pz), pxz)),
+                                  _mm256_mul_pd(_mm256_mul_pd(py, pz), pyz));
+  const __m256d num = _mm256_sub_pd(a, _mm256_mul_pd(two, b));
+  __m256d v = _mm256_add_pd(
+      f, _mm256_div_pd(_mm256_mul_pd(_mm256_set1_pd(dt), num), _mm256_add_pd(g2, _mm256_set1_pd(1e-12))));
+  // std::max(v, lo) is (v < lo ? lo : v): max_pd(lo, v); std::min(v, hi) is min_pd(hi, v).
+  v = _mm256_max_pd(_mm256_cvtps_pd(_mm_loadu_ps(lo)), v);
+  v = _mm256_min_pd(_mm256_cvtps_pd(_mm_loadu_ps(hi)), v);
+  const __m128 vf = _mm256_cvtpd_ps(v);
+  if (run) {
+    _mm_storeu_ps(next + c[0], vf);
+  } else {
+    alignas(16) float w[4];
+    _mm_store_ps(w, vf);
+    for (int l = 0; l < 4; ++l) next[c[l]] = w[l];
+  }
+  // zero_set_move: |v - f| where |f| < near and a face neighbour's sign differs.
+  const __m256d zero = _mm256_setzero_pd();
+  const __m256d neg = _mm256_cmp_pd(f, zero, _CMP_LT_OQ);
+  __m256d across = _mm256_xor_pd(_mm256_cmp_pd(fxp, zero, _CMP_LT_OQ), neg);
+  across = _mm256_or_pd(across, _mm256_xor_pd(_mm256_cmp_pd(fxm, zero, _CMP_LT_OQ), neg));
+  across = _mm256_or_pd(across, _mm256_xor_pd(_mm256_cmp_pd(fyp, zero, _CMP_LT_OQ), neg));
+  across = _mm256_or_pd(across, _mm256_xor_pd(_mm256_cmp_pd(fym, zero, _CMP_LT_OQ), neg));
+  across = _mm256_or_pd(across, _mm256_xor_pd(_mm256_cmp_pd(fzp, zero, _CMP_LT_OQ), neg));
+  across = _mm256_or_pd(across, _mm256_xor_pd(_mm256_cmp_pd(fzm, zero, _CMP_LT_OQ), neg));
+  const __m256d sign = _mm256_set1_pd(-0.0);
+  const __m256d close = _mm256_cmp_pd(_mm256_andnot_pd(sign, f), _mm256_set1_pd(near), _CMP_LT_OQ);
+  const __m256d move = _mm256_and_pd(_mm256_and_pd(close, across), _mm256_andnot_pd(sign, _mm256_sub_pd(v, f)));
+  alignas(32) double mv[4];
+  _mm256_store_pd(mv, move);
+  double m = 0;
+  for (int l = 0; l < 4; ++l) m = std::max(m, mv[l]);
+  return m;
+}
+#undef PM_AVX2
+#endif
+
 // One explicit step of level-set mean-curvature flow phi_t = kappa |grad phi|
 // at the active nodes (Jacobi: reads `cur`, writes `next`, both working-box
 // arrays that agree off the active nodes), clamped between the fillet and
@@ -116,38 +243,28 @@ struct Band {
 // the zero set (a face neighbour across it) within `near` of it.
 double flow_step(const Band& band, const std::vector<float>& cur, std::vector<float>& next,
                  const std::vector<float>& lo, const std::vector<float>& hi, const double h[3], double dt,
-                 double near) {
+                 double near, bool avx2 = cpu_has_avx2()) {
   const double ix = 1 / h[0], iy = 1 / h[1], iz = 1 / h[2];
   const std::size_t n = band.size();
   const std::size_t chunks = std::max<std::size_t>(1, n / 4096 + 1);
   std::vector<double> moved(chunks, 0.0);
   const std::ptrdiff_t* o = band.off;
+  avx2 = avx2 && cpu_has_avx2();
   pm::parallel_for(std::size_t(0), chunks, [&](std::size_t ch) {
     const std::size_t b = n * ch / chunks, e = n * (ch + 1) / chunks;
     double m = 0;
-    for (std::size_t t = b; t < e; ++t) {
+    std::size_t t = b;
+#if PM_AVX2_COPIES
+    if (avx2)
+      for (; t + 4 <= e; t += 4)
+        m = std::max(m, flow_values_x4(cur.data(), next.data(), band.active.data() + t, o, ix, iy, iz, dt,
+                                       lo.data() + t, hi.data() + t, near));
+#endif
+    for (; t < e; ++t) {
       const std::size_t c = band.active[t];
-      const float* r = cur.data() + c;
-      const double f = r[0];
-      const double fxp = r[o[0]], fxm = r[o[1]], fyp = r[o[2]], fym = r[o[3]];
-      const double fzp = r[o[4]], fzm = r[o[5]];
-      const double px = 0.5 * (fxp - fxm) * ix, py = 0.5 * (fyp - fym) * iy, pz = 0.5 * (fzp - fzm) * iz;
-      const double pxx = (fxp - 2 * f + fxm) * ix * ix, pyy = (fyp - 2 * f + fym) * iy * iy,
-                   pzz = (fzp - 2 * f + fzm) * iz * iz;
-      const double pxy = 0.25 * (r[o[6]] - r[o[7]] - r[o[8]] + r[o[9]]) * ix * iy;
-      const double pxz = 0.25 * (r[o[10]] - r[o[11]] - r[o[12]] + r[o[13]]) * ix * iz;
-      const double pyz = 0.25 * (r[o[14]] - r[o[15]] - r[o[16]] + r[o[17]]) * iy * iz;
-      const double gx2 = px * px, gy2 = py * py, gz2 = pz * pz, g2 = gx2 + gy2 + gz2;
-      const double num = pxx * (gy2 + gz2) + pyy * (gx2 + gz2) + pzz * (gx2 + gy2) -
-                         2 * (px * py * pxy + px * pz * pxz + py * pz * pyz);
-      double v = f + dt * num / (g2 + 1e-12);
-      v = std::min(std::max(v, double(lo[t])), double(hi[t]));
+      const double v = flow_value(cur.data() + c, o, ix, iy, iz, dt, lo[t], hi[t]);
       next[c] = float(v);
-      // Motion of the zero set: only at nodes with a face neighbour across it.
-      const bool neg = f < 0;
-      if (std::fabs(f) < near && ((fxp < 0) != neg || (fxm < 0) != neg || (fyp < 0) != neg || (fym < 0) != neg ||
-                                  (fzp < 0) != neg || (fzm < 0) != neg))
-        m = std::max(m, std::fabs(v - f));
+      m = std::max(m, zero_set_move(cur.data() + c, o, v, near));
     }
     moved[ch] = m;
   });
@@ -215,6 +332,14 @@ double zero_set_mean_move(const Band& band, const std::vector<float>& cur, const
 }
 
 }  // namespace
+
+namespace detail {
+double tighten_flow_step(const std::vector<std::uint32_t>& active, const Dims& box, const std::vector<float>& cur,
+                         std::vector<float>& next, const std::vector<float>& lo, const std::vector<float>& hi,
+                         const double h[3], double dt, double near, bool avx2) {
+  return flow_step(Band(active, box), cur, next, lo, hi, h, dt, near, avx2);
+}
+}  // namespace detail
 
 std::string tighten_radius_note(const TightenResult& r) {
   std::ostringstream m;

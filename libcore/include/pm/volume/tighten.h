@@ -137,9 +137,22 @@ TightenResult tighten(const Volume& mask, const TightenParams& p);
 /// by r + 3 voxels replicating its border labels, and the results are cropped
 /// back. `sink(label, result)` receives each label's result in increasing
 /// label order (result.pad is 0; result.distance is negative inside unless
-/// p.positive_inside). 	hrow InputError for a label map with non-integer
+/// p.positive_inside). \throw InputError for a label map with non-integer
 /// values or fewer than 2 labels; as tighten() otherwise.
 void tighten_labels(const Volume& labels, const TightenParams& p,
                     const std::function<void(int label, TightenResult&& result)>& sink);
+
+namespace detail {
+/// One step of tighten's clamped mean-curvature flow, exposed for the test
+/// that holds its AVX2 copy to the baseline one bit for bit. `active`: the
+/// flowing nodes (ascending indices into the box, none on its border); cur
+/// and next: the box's values (next is written at the active nodes); lo, hi:
+/// the clamp per active node; h: spacings; returns the largest move of a
+/// node next to the zero set within `near` of it. avx2 selects the AVX2 copy
+/// (ignored where the CPU or the build has none).
+double tighten_flow_step(const std::vector<std::uint32_t>& active, const Dims& box, const std::vector<float>& cur,
+                         std::vector<float>& next, const std::vector<float>& lo, const std::vector<float>& hi,
+                         const double h[3], double dt, double near, bool avx2);
+}  // namespace detail
 
 }  // namespace pm
