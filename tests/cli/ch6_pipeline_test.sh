@@ -38,4 +38,20 @@ for l, m in q["materials"].items():
     t = m["topology"]
     assert t["watertight"] and t["manifold"] and t["components"] == 1, (l, t)
 PY
+# MA_SIDE=inside: each material's inner medial axis only (their union is the interfaces' medial
+# axis): the same inner points as with both sides, no outer ones, so the feature size and the
+# sizing field can only grow.
+make -s -f "$SRC/Makefile.pipeline" materials INPUT="$T/tiny.nrrd" OUT="$T/in" BIN="$BIN" R=1 SAMPLER=$SAMPLER \
+  MA_SIDE=inside 2> "$T/make_in.err" || { cat "$T/make_in.err" >&2; exit 1; }
+for l in 0 1 2; do
+  "$BIN/volconv" --info "$T/out/work/h.nrrd" > "$T/h_both.json"
+  "$BIN/volconv" --info "$T/in/work/h.nrrd" > "$T/h_in.json"
+  python3 - "$T/out/work/medialaxis_$l.json" "$T/in/work/medialaxis_$l.json" "$T/h_both.json" "$T/h_in.json" <<'PY'
+import json, sys
+both, inside, hb, hi = (json.load(open(p)) for p in sys.argv[1:5])
+assert inside["counts"]["outer"] == 0, inside["counts"]
+assert inside["counts"]["inner"] == both["counts"]["inner"], (inside["counts"], both["counts"])
+assert hi["min"] >= hb["min"] - 1e-6 and hi["mean"] >= hb["mean"] - 1e-6, (hi, hb)
+PY
+done
 echo "ch6 pipeline passed ($SAMPLER)"
