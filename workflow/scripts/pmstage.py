@@ -41,7 +41,7 @@ DEFAULTS = {
         "MORPH_OPS": "close:ball,open:ball", "DOWNSAMPLE": "1", "R": "1", "UPSAMPLE": "1",
         "EPS": "0.5", "DELTA": "0.4", "HMIN": "", "SPACING": "", "DECIMATE": "2",
         "SAMPLER": "multiparticles", "IMPROVE": "3", "MPFLAGS": "", "REQUIRE": "",
-        "FLAGS": "-q",
+        "FLAGS": "-q", "MA_SIDE": "both",
     },
 }
 
@@ -354,7 +354,7 @@ class Stage:
         if self.v["SPACING"]:
             return self.not_needed("uniform SPACING: no sizing field")
         for label, sdf in self.sdfs():
-            self.run([self.tool("medialaxis"), sdf, self.out(f"ma_{label}.ply"), "--side", "both", "--lfs-only"]
+            self.run([self.tool("medialaxis"), sdf, self.out(f"ma_{label}.ply"), "--side", self.v["MA_SIDE"], "--lfs-only"]
                      + self.flags + self.threads_args() + ["--stats", self.out(f"medialaxis_{label}.json")])
 
     def materials_sizingfield(self):
