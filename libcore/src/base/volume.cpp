@@ -186,7 +186,18 @@ std::vector<double> Volume::to_double() const {
 Volume Volume::converted(VoxelType t) const {
   Volume out(t, dims_, geometry_);
   const std::size_t n = count();
-  for (std::size_t i = 0; i < n; ++i) out.set(i, get(i));
+  // Typed loops: each voxel as get() reads it (a double), stored as set()
+  // stores it (convert_to), without two calls per voxel.
+  visit_voxel_type(type_, [&](auto from) {
+    using S = decltype(from);
+    const S* src = reinterpret_cast<const S*>(bytes_.data());
+    return visit_voxel_type(t, [&](auto to) {
+      using T = decltype(to);
+      T* dst = reinterpret_cast<T*>(out.bytes_.data());
+      for (std::size_t i = 0; i < n; ++i) dst[i] = convert_to<T>(static_cast<double>(src[i]));
+      return 0;
+    });
+  });
   return out;
 }
 
@@ -267,7 +278,12 @@ Volume padded(const Volume& v, std::size_t n, double value) {
   const std::size_t bytes = v.count() ? v.byte_size() / v.count() : 0;
   auto* dst = static_cast<unsigned char*>(out.raw());
   if (value != 0)
-    for (std::size_t i = 0; i < out.count(); ++i) out.set(i, value);
+    visit_voxel_type(v.type(), [&](auto tag) {
+      using T = decltype(tag);
+      const T x = convert_to<T>(value);  // as set() stores it
+      std::fill_n(reinterpret_cast<T*>(dst), out.count(), x);
+      return 0;
+    });
   const auto* src = static_cast<const unsigned char*>(v.raw());
   for (std::size_t k = 0; k < d.nz; ++k)
     for (std::size_t j = 0; j < d.ny; ++j)
