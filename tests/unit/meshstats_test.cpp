@@ -2,10 +2,14 @@
 
 #include <gtest/gtest.h>
 
+#include <random>
+#include <string>
+
 #include <cmath>
 
 #include "pm/base/error.h"
 #include "pm/field/implicits.h"
+#include "test_meshes.h"
 
 namespace pm {
 namespace {
@@ -69,6 +73,54 @@ TEST(MeshStats, DegenerateAndOpenAndIntersecting) {
   q = mesh_quality(two);
   EXPECT_EQ(q.topology.components, 2u);
   EXPECT_GT(q.self_intersecting_pairs, 0);
+}
+
+TEST(MeshStats, SelfIntersectionsAreCgalsPairForPair) {
+  // The grid search for candidate pairs against CGAL's own
+  // PMP::self_intersections (its box search), pair for pair, on meshes with
+  // many crossings: interpenetrating spheres, a sphere crumpled by noise
+  // (crossings between neighbouring faces too), exactly coplanar overlapping
+  // faces (two cubes, one resting on the other's top, shifted), a collinear
+  // (degenerate) face, and an intact surface (none).
+  std::vector<std::pair<std::string, Mesh>> cases;
+  Mesh two = testing::icosphere(3, 1.0);
+  const Mesh b = testing::icosphere(3, 0.8, {0.9, 0.13, -0.07});
+  const int nv = int(two.vertices.size());
+  for (const Vec3& v : b.vertices) two.vertices.push_back(v);
+  for (const auto& f : b.faces) two.faces.push_back({f[0] + nv, f[1] + nv, f[2] + nv});
+  cases.emplace_back("two spheres", two);
+  Mesh crumpled = testing::icosphere(3, 1.0);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-0.09, 0.09);
+  for (Vec3& v : crumpled.vertices) v = v + Vec3(u(rng), u(rng), u(rng));
+  cases.emplace_back("crumpled sphere", crumpled);
+  auto cube = [](Vec3 lo, double s) {
+    Mesh c;
+    for (int k = 0; k < 8; ++k) c.vertices.push_back(lo + Vec3((k & 1) * s, ((k >> 1) & 1) * s, ((k >> 2) & 1) * s));
+    c.faces = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
+               {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
+    return c;
+  };
+  Mesh stacked = cube({0, 0, 0}, 1);
+  const Mesh top = cube({0.5, 0.25, 1}, 1);  // its bottom lies in the plane of the first's top
+  for (const Vec3& v : top.vertices) stacked.vertices.push_back(v);
+  for (const auto& f : top.faces) stacked.faces.push_back({f[0] + 8, f[1] + 8, f[2] + 8});
+  cases.emplace_back("stacked cubes", stacked);
+  Mesh flat = cube({0, 0, 0}, 1);
+  flat.vertices[4] = {0.5, 0, 0};  // face {0, 1, 4} collinear (exactly: halves are exact)
+  cases.emplace_back("collinear face", flat);
+  cases.emplace_back("intact sphere", testing::icosphere(4, 1.0));
+  std::size_t total = 0;
+  for (const auto& [name, mesh] : cases) {
+    std::vector<std::pair<int, int>> ours, cgal;
+    ASSERT_TRUE(self_intersecting_faces(mesh, ours)) << name;
+    ASSERT_TRUE(detail::cgal_self_intersecting_faces(mesh, cgal)) << name;
+    EXPECT_EQ(ours, cgal) << name << ": " << ours.size() << " pairs against CGAL's " << cgal.size();
+    if (name == "intact sphere") EXPECT_TRUE(ours.empty());
+    else EXPECT_FALSE(ours.empty()) << name;
+    total += ours.size();
+  }
+  EXPECT_GT(total, 100u);
 }
 
 TEST(MeshStats, EdgeOverSizing) {

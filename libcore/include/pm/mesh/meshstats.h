@@ -87,6 +87,11 @@ int count_self_intersections(const Mesh& m);
 /// flips and vertex moves of a mesh that was checked), so CGAL's soup check,
 /// about a third of the cost, is skipped.
 bool self_intersecting_faces(const Mesh& m, std::vector<std::pair<int, int>>& out, bool known_polygon_mesh = false);
+namespace detail {
+/// The same by CGAL's own PMP::self_intersections (its box search), for the
+/// test that holds self_intersecting_faces to it pair for pair.
+bool cgal_self_intersecting_faces(const Mesh& m, std::vector<std::pair<int, int>>& out);
+}  // namespace detail
 /// Intersecting pairs of non-adjacent triangles of an interface mesh (face
 /// properties `label_a`, `label_b`), tested on each material's closed surface
 /// in turn (the faces with label L on one side: L's surface meets itself or
