@@ -1,5 +1,8 @@
 #include "pm/mesh/coverage.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -93,7 +96,24 @@ std::vector<ComponentCoverage> component_coverage(const Mesh& seeds, const std::
     c.bounds.extend(seeds.vertices[i]);
   }
   const SeedGrid grid(seeds.vertices);
-  for (const Vec3& p : points) ++by[int(it->second[grid.nearest(p)])].points;
+  // Nearest seeds in parallel, counted per component in a dense table per
+  // chunk and summed (integers: the same counts for any schedule).
+  std::vector<int> comps;
+  for (const auto& kv : by) comps.push_back(kv.first);
+  std::vector<std::size_t> slot(seeds.vertices.size());
+  for (std::size_t i = 0; i < seeds.vertices.size(); ++i)
+    slot[i] = std::size_t(std::lower_bound(comps.begin(), comps.end(), int(it->second[i])) - comps.begin());
+  const std::vector<std::size_t> counts = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, points.size(), 4096), std::vector<std::size_t>(comps.size(), 0),
+      [&](const tbb::blocked_range<std::size_t>& r, std::vector<std::size_t> acc) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) ++acc[slot[grid.nearest(points[i])]];
+        return acc;
+      },
+      [](std::vector<std::size_t> a, const std::vector<std::size_t>& b) {
+        for (std::size_t c = 0; c < a.size(); ++c) a[c] += b[c];
+        return a;
+      });
+  for (std::size_t c = 0; c < comps.size(); ++c) by[comps[c]].points += counts[c];
   std::vector<ComponentCoverage> out;
   for (auto& kv : by) out.push_back(kv.second);
   return out;

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
-#include <unordered_map>
 #include <unordered_set>
 
 #include "pm/base/error.h"
@@ -48,44 +47,45 @@ double radius_ratio(const Vec3& a, const Vec3& b, const Vec3& c) {
 CreaseCount count_creases(const Mesh& m, const std::vector<int>& faces, double angle_deg) {
   const std::size_t n = faces.empty() ? m.faces.size() : faces.size();
   auto face_at = [&](std::size_t i) { return faces.empty() ? int(i) : faces[i]; };
-  // Directed edge (u, v) of a face, keyed by (min, max): the faces using it and the
-  // direction each runs through it (+1: min -> max).
+  // Directed edge (u, v) of a face, keyed by (min, max), with the face and
+  // the direction it runs through it (+1: min -> max); sorted, so each
+  // edge's uses come together (an interior edge has exactly two).
   struct Use {
-    int face[2] = {-1, -1};
-    int dir[2] = {0, 0};
-    int count = 0;
+    std::uint64_t key;
+    int face, dir;
+    bool operator<(const Use& o) const { return key < o.key || (key == o.key && face < o.face); }
   };
-  std::unordered_map<std::uint64_t, Use> uses;
-  uses.reserve(n * 2);
+  std::vector<Use> uses(3 * n);
   for (std::size_t i = 0; i < n; ++i) {
     const int f = face_at(i);
     for (int e = 0; e < 3; ++e) {
       int a = m.faces[f][e], b = m.faces[f][(e + 1) % 3];
       const int dir = a < b ? 1 : -1;
       if (a > b) std::swap(a, b);
-      Use& u = uses[(std::uint64_t(std::uint32_t(a)) << 32) | std::uint32_t(b)];
-      if (u.count < 2) {
-        u.face[u.count] = f;
-        u.dir[u.count] = dir;
-      }
-      ++u.count;
+      uses[3 * i + std::size_t(e)] = {(std::uint64_t(std::uint32_t(a)) << 32) | std::uint32_t(b), f, dir};
     }
   }
+  std::sort(uses.begin(), uses.end());
   auto normal = [&](int f) {
     const auto& t = m.faces[f];
     return cross(m.vertices[t[1]] - m.vertices[t[0]], m.vertices[t[2]] - m.vertices[t[0]]);
   };
   const double cos_limit = std::cos(angle_deg * M_PI / 180);
   CreaseCount c;
-  for (const auto& [key, u] : uses) {
-    if (u.count != 2) continue;
-    const Vec3 n0 = normal(u.face[0]);
-    Vec3 n1 = normal(u.face[1]);
-    const double l0 = norm(n0), l1 = norm(n1);
-    if (!(l0 > 0) || !(l1 > 0)) continue;
-    if (u.dir[0] == u.dir[1]) n1 = n1 * -1.0;  // same direction through the edge: orientations disagree
-    ++c.interior_edges;
-    c.creased += dot(n0, n1) / (l0 * l1) < cos_limit;
+  for (std::size_t g = 0; g < uses.size();) {
+    std::size_t e = g + 1;
+    while (e < uses.size() && uses[e].key == uses[g].key) ++e;
+    if (e - g == 2) {
+      const Vec3 n0 = normal(uses[g].face);
+      Vec3 n1 = normal(uses[g + 1].face);
+      const double l0 = norm(n0), l1 = norm(n1);
+      if (l0 > 0 && l1 > 0) {
+        if (uses[g].dir == uses[g + 1].dir) n1 = n1 * -1.0;  // same direction through the edge: orientations disagree
+        ++c.interior_edges;
+        c.creased += dot(n0, n1) / (l0 * l1) < cos_limit;
+      }
+    }
+    g = e;
   }
   return c;
 }
