@@ -311,28 +311,39 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
   //    as offsets in the scaled-index frame (axis a in world units h[a]).
   std::vector<std::int32_t> band(n, -1);
   std::vector<std::size_t> per_slice(nz + 1, 0);
-  auto is_band = [&](std::size_t i, std::size_t j, std::size_t k) {
-    const std::size_t c = i + nx * j + nxy * k;
-    const bool b = below(c);
-    if (double(f[c]) == iso) return true;
-    const std::size_t ijk[3] = {i, j, k};
-    for (int a = 0; a < 3; ++a) {
-      const std::size_t na = dims[a];
-      if (ijk[a] > 0 && below(c - stride[a]) != b) return true;
-      if (ijk[a] + 1 < na && below(c + stride[a]) != b) return true;
-    }
-    return false;
-  };
+  // below() of every node as a byte, then a node is a band node when it lies
+  // on the level set or a face neighbour's byte differs from its own.
+  std::vector<std::uint8_t> bl(n);
+  pm::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
+    for (std::size_t c = nxy * k, e = c + nxy; c < e; ++c) bl[c] = below(c) ? 1 : 0;
+  });
   pm::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
     std::size_t cnt = 0;
-    for (std::size_t j = 0; j < ny; ++j)
-      for (std::size_t i = 0; i < nx; ++i)
-        if (is_band(i, j, k)) {
-          band[i + nx * j + nxy * k] = 0;
+    for (std::size_t j = 0; j < ny; ++j) {
+      const std::size_t row = nx * j + nxy * k;
+      const std::uint8_t* r = bl.data() + row;
+      const std::uint8_t* ym = j > 0 ? r - nx : nullptr;
+      const std::uint8_t* yp = j + 1 < ny ? r + nx : nullptr;
+      const std::uint8_t* zm = k > 0 ? r - nxy : nullptr;
+      const std::uint8_t* zp = k + 1 < nz ? r + nxy : nullptr;
+      for (std::size_t i = 0; i < nx; ++i) {
+        const std::uint8_t b = r[i];
+        bool on = double(f[row + i]) == iso;
+        on |= i > 0 && r[i - 1] != b;
+        on |= i + 1 < nx && r[i + 1] != b;
+        on |= ym && ym[i] != b;
+        on |= yp && yp[i] != b;
+        on |= zm && zm[i] != b;
+        on |= zp && zp[i] != b;
+        if (on) {
+          band[row + i] = 0;
           ++cnt;
         }
+      }
+    }
     per_slice[k + 1] = cnt;
   });
+  std::vector<std::uint8_t>().swap(bl);
   for (std::size_t k = 0; k < nz; ++k) per_slice[k + 1] += per_slice[k];
   const std::size_t nband = per_slice[nz];
   if (nband == 0) {
