@@ -30,13 +30,14 @@ namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 struct Line {
-  std::vector<double> f, z;
+  std::vector<double> f, z, g;
   std::vector<std::int32_t> site, v;
   std::vector<float> out_f;
   std::vector<std::int32_t> out_site;
   void resize(std::size_t n) {
     f.resize(n);
     z.resize(n + 1);
+    g.resize(n);
     site.resize(n);
     v.resize(n);
     out_f.resize(n);
@@ -50,18 +51,21 @@ struct Line {
 void envelope_1d(Line& L, std::size_t n, double h) {
   const double hh = h * h;
   int k = -1;
+  // g[k]: f[p] + hh p² of the parabola v[k] = p, kept from when it was
+  // pushed (the same double as recomputing it).
   for (std::size_t q = 0; q < n; ++q) {
     if (!(L.f[q] < kInf)) continue;
     const double fq = L.f[q] + hh * double(q) * double(q);
     double s = -kInf;
     while (k >= 0) {
       const std::size_t p = std::size_t(L.v[std::size_t(k)]);
-      s = (fq - (L.f[p] + hh * double(p) * double(p))) / (2.0 * hh * (double(q) - double(p)));
+      s = (fq - L.g[std::size_t(k)]) / (2.0 * hh * (double(q) - double(p)));
       if (s <= L.z[std::size_t(k)]) --k;
       else break;
     }
     ++k;
     L.v[std::size_t(k)] = std::int32_t(q);
+    L.g[std::size_t(k)] = fq;
     L.z[std::size_t(k)] = k == 0 ? -kInf : s;
     L.z[std::size_t(k) + 1] = kInf;
   }
