@@ -96,7 +96,8 @@ TEST(Tighten, FlowStepAvx2CopyAgreesBitForBit) {
   EXPECT_EQ(std::memcmp(&m0, &m1, sizeof m0), 0) << m0 << " vs " << m1;
   std::size_t moved = 0;
   for (std::size_t c = 0; c < cur.size(); ++c) {
-    ASSERT_EQ(std::memcmp(&base[c], &fast[c], sizeof(float)), 0) << "node " << c << ": " << base[c] << " vs " << fast[c];
+    ASSERT_EQ(std::memcmp(&base[c], &fast[c], sizeof(float)), 0)
+        << "node " << c << ": " << base[c] << " vs " << fast[c];
     moved += base[c] != cur[c];
   }
   EXPECT_GT(moved, active.size() / 2);  // the step did something

@@ -84,8 +84,9 @@ bool self_intersecting_faces(const Mesh& m, std::vector<std::pair<int, int>>& ou
   for (std::size_t f = 0; f < nf; ++f)
     if (degenerate[f]) out.emplace_back(int(f), int(f));
 
-  // The grid: cells about as wide as the widest box (in the mean), so a box
-  // covers at most two cells per axis, and no more cells than 4 per face.
+  // The grid: cells as wide as the boxes' largest extents on average (most
+  // boxes then cover one or two cells per axis), widened until there are at
+  // most about four cells per face.
   double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL}, ext = 0;
   std::size_t nb = 0;
   for (std::size_t f = 0; f < nf; ++f) {
@@ -101,7 +102,10 @@ bool self_intersecting_faces(const Mesh& m, std::vector<std::pair<int, int>>& ou
     normalise(out);
     return true;
   }
-  double w = std::max(ext / double(nb), 1e-300);
+  const double span = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+  if (!std::isfinite(span) || !std::isfinite(ext)) return detail::cgal_self_intersecting_faces(m, out);
+  double w = std::max(ext / double(nb), span * 1e-6);  // at most a million cells along an axis to start
+  if (!(w > 0)) w = 1;                                  // every box the same point
   long n[3];
   for (;;) {
     double cells = 1;
@@ -148,33 +152,34 @@ bool self_intersecting_faces(const Mesh& m, std::vector<std::pair<int, int>>& ou
 
   const K gt;
   tbb::enumerable_thread_specific<std::vector<std::pair<int, int>>> found;
-  pm::parallel_for(tbb::blocked_range<std::size_t>(0, group.size() - 1, 256), [&](const tbb::blocked_range<std::size_t>& r) {
-    auto& mine = found.local();
-    const auto segment = gt.construct_segment_3_object();
-    const auto triangle = gt.construct_triangle_3_object();
-    const auto meet = gt.do_intersect_3_object();
-    for (std::size_t g = r.begin(); g != r.end(); ++g) {
-      const std::uint64_t here = entry[group[g]] >> 32;
-      for (std::size_t x = group[g]; x < group[g + 1]; ++x) {
-        const std::size_t a = std::size_t(entry[x] & 0xffffffffu);
-        for (std::size_t y = x + 1; y < group[g + 1]; ++y) {
-          const std::size_t b = std::size_t(entry[y] & 0xffffffffu);
-          // Closed boxes meet: the low corner of their intersection.
-          double c[3];
-          bool meets = true;
-          for (int t = 0; t < 3 && meets; ++t) {
-            c[t] = std::max(box[a].min(t), box[b].min(t));
-            meets = c[t] <= std::min(box[a].max(t), box[b].max(t));
-          }
-          if (!meets || cell_id(cell(c[0], 0), cell(c[1], 1), cell(c[2], 2)) != here) continue;
-          const auto ha = sm.halfedge(face_descriptor(std::uint32_t(a)));
-          const auto hb = sm.halfedge(face_descriptor(std::uint32_t(b)));
-          if (PMP::internal::do_faces_intersect<K>(ha, hb, sm, vpm, segment, triangle, meet))
-            mine.emplace_back(int(a), int(b));
-        }
-      }
-    }
-  });
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, group.size() - 1, 256),
+                   [&](const tbb::blocked_range<std::size_t>& r) {
+                     auto& mine = found.local();
+                     const auto segment = gt.construct_segment_3_object();
+                     const auto triangle = gt.construct_triangle_3_object();
+                     const auto meet = gt.do_intersect_3_object();
+                     for (std::size_t g = r.begin(); g != r.end(); ++g) {
+                       const std::uint64_t here = entry[group[g]] >> 32;
+                       for (std::size_t x = group[g]; x < group[g + 1]; ++x) {
+                         const std::size_t a = std::size_t(entry[x] & 0xffffffffu);
+                         for (std::size_t y = x + 1; y < group[g + 1]; ++y) {
+                           const std::size_t b = std::size_t(entry[y] & 0xffffffffu);
+                           // Closed boxes meet: the low corner of their intersection.
+                           double c[3];
+                           bool meets = true;
+                           for (int t = 0; t < 3 && meets; ++t) {
+                             c[t] = std::max(box[a].min(t), box[b].min(t));
+                             meets = c[t] <= std::min(box[a].max(t), box[b].max(t));
+                           }
+                           if (!meets || cell_id(cell(c[0], 0), cell(c[1], 1), cell(c[2], 2)) != here) continue;
+                           const auto ha = sm.halfedge(face_descriptor(std::uint32_t(a)));
+                           const auto hb = sm.halfedge(face_descriptor(std::uint32_t(b)));
+                           if (PMP::internal::do_faces_intersect<K>(ha, hb, sm, vpm, segment, triangle, meet))
+                             mine.emplace_back(int(a), int(b));
+                         }
+                       }
+                     }
+                   });
   for (const auto& v : found) out.insert(out.end(), v.begin(), v.end());
   normalise(out);
   return true;

@@ -161,9 +161,10 @@ PM_AVX2 inline __m128 flow_at_x4f(const float* cur, const std::uint32_t* c, __m1
 // ((a - b) - c) + d in float, widened: flow_value's edge sums.
 PM_AVX2 inline __m256d flow_edge_x4(const float* cur, const std::uint32_t* c, __m128i idx, bool run,
                                     const std::ptrdiff_t* o) {
-  const __m128 s = _mm_add_ps(_mm_sub_ps(_mm_sub_ps(flow_at_x4f(cur, c, idx, run, o[0]), flow_at_x4f(cur, c, idx, run, o[1])),
-                                         flow_at_x4f(cur, c, idx, run, o[2])),
-                              flow_at_x4f(cur, c, idx, run, o[3]));
+  const __m128 s =
+      _mm_add_ps(_mm_sub_ps(_mm_sub_ps(flow_at_x4f(cur, c, idx, run, o[0]), flow_at_x4f(cur, c, idx, run, o[1])),
+                            flow_at_x4f(cur, c, idx, run, o[2])),
+                 flow_at_x4f(cur, c, idx, run, o[3]));
   return _mm256_cvtps_pd(s);
 }
 
@@ -190,9 +191,12 @@ PM_AVX2 double flow_values_x4(const float* cur, float* next, const std::uint32_t
   const __m256d pxx = _mm256_mul_pd(_mm256_mul_pd(_mm256_add_pd(_mm256_sub_pd(fxp, f2), fxm), vx), vx);
   const __m256d pyy = _mm256_mul_pd(_mm256_mul_pd(_mm256_add_pd(_mm256_sub_pd(fyp, f2), fym), vy), vy);
   const __m256d pzz = _mm256_mul_pd(_mm256_mul_pd(_mm256_add_pd(_mm256_sub_pd(fzp, f2), fzm), vz), vz);
-  const __m256d pxy = _mm256_mul_pd(_mm256_mul_pd(_mm256_mul_pd(quarter, flow_edge_x4(cur, c, idx, run, o + 6)), vx), vy);
-  const __m256d pxz = _mm256_mul_pd(_mm256_mul_pd(_mm256_mul_pd(quarter, flow_edge_x4(cur, c, idx, run, o + 10)), vx), vz);
-  const __m256d pyz = _mm256_mul_pd(_mm256_mul_pd(_mm256_mul_pd(quarter, flow_edge_x4(cur, c, idx, run, o + 14)), vy), vz);
+  const __m256d pxy =
+      _mm256_mul_pd(_mm256_mul_pd(_mm256_mul_pd(quarter, flow_edge_x4(cur, c, idx, run, o + 6)), vx), vy);
+  const __m256d pxz =
+      _mm256_mul_pd(_mm256_mul_pd(_mm256_mul_pd(quarter, flow_edge_x4(cur, c, idx, run, o + 10)), vx), vz);
+  const __m256d pyz =
+      _mm256_mul_pd(_mm256_mul_pd(_mm256_mul_pd(quarter, flow_edge_x4(cur, c, idx, run, o + 14)), vy), vz);
   const __m256d gx2 = _mm256_mul_pd(px, px), gy2 = _mm256_mul_pd(py, py), gz2 = _mm256_mul_pd(pz, pz);
   const __m256d g2 = _mm256_add_pd(_mm256_add_pd(gx2, gy2), gz2);
   const __m256d a = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(pxx, _mm256_add_pd(gy2, gz2)),
