@@ -1,5 +1,8 @@
 #include "pm/base/volume.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -210,16 +213,27 @@ Box Volume::world_bounds() const {
   return b;
 }
 
+namespace {
+constexpr std::size_t kScanGrain = std::size_t(1) << 18;  // voxels per chunk of the parallel scans
+}  // namespace
+
 void require_finite(const Volume& v, const std::string& what) {
   if (is_integer(v.type())) return;
   const std::size_t n = v.count();
   // The first non-finite voxel, by a typed loop (get() per voxel was a call each).
+  // Chunks in parallel, the smallest index found: the same voxel whatever the schedule.
   const std::size_t bad = visit_voxel_type(v.type(), [&](auto tag) -> std::size_t {
     using T = decltype(tag);
     const T* p = static_cast<const T*>(v.raw());
-    for (std::size_t i = 0; i < n; ++i)
-      if (!std::isfinite(static_cast<double>(p[i]))) return i;
-    return n;
+    return tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(0, n, kScanGrain), n,
+        [&](const tbb::blocked_range<std::size_t>& r, std::size_t first) {
+          if (first < r.begin()) return first;
+          for (std::size_t i = r.begin(); i != r.end(); ++i)
+            if (!std::isfinite(static_cast<double>(p[i]))) return i;
+          return first;
+        },
+        [](std::size_t a, std::size_t b) { return std::min(a, b); });
   });
   for (std::size_t i = bad; i < n; ++i) {
     const double x = v.get(i);
@@ -239,17 +253,27 @@ ValueRange value_range(const Volume& v) {
   const std::size_t n = v.count();
   // A typed loop (get() per voxel was a call each); NaN voxels are skipped
   // alike (std::min and std::max keep the first argument on NaN).
-  visit_voxel_type(v.type(), [&](auto tag) {
+  // Chunks in parallel, joined left to right: min and max keep the first of
+  // equal values (0 and -0), so the result is the serial loop's.
+  return visit_voxel_type(v.type(), [&](auto tag) {
     using T = decltype(tag);
     const T* p = static_cast<const T*>(v.raw());
-    for (std::size_t i = 0; i < n; ++i) {
-      const double x = static_cast<double>(p[i]);
-      r.lo = std::min(r.lo, x);
-      r.hi = std::max(r.hi, x);
-    }
-    return 0;
+    return tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(0, n, kScanGrain), r,
+        [&](const tbb::blocked_range<std::size_t>& b, ValueRange acc) {
+          for (std::size_t i = b.begin(); i != b.end(); ++i) {
+            const double x = static_cast<double>(p[i]);
+            acc.lo = std::min(acc.lo, x);
+            acc.hi = std::max(acc.hi, x);
+          }
+          return acc;
+        },
+        [](ValueRange a, const ValueRange& b) {
+          a.lo = std::min(a.lo, b.lo);
+          a.hi = std::max(a.hi, b.hi);
+          return a;
+        });
   });
-  return r;
 }
 
 VoxelType smallest_integer_type(const Volume& v) {
