@@ -307,7 +307,18 @@ typename GridT::Ptr grid_from_values(std::vector<typename GridT::ValueType>& val
   const openvdb::Coord lo(0, 0, 0), hi(int(d.nx) - 1, int(d.ny) - 1, int(d.nz) - 1);
   const openvdb::CoordBBox bbox(lo, hi);
   typename GridT::Ptr grid = GridT::create(values.front());
-  {
+  if constexpr (std::is_integral_v<ValueT>) {
+    // copyFromDense compares with a tolerance as |a - b| <= tol, which
+    // overflows for labels far apart (signed overflow: undefined, UBSan's
+    // VolumeIoRoundTrip.VdbStoresLabelsAsIntegerGridsOfTheSameType): the
+    // voxels that differ from the background set one by one instead.
+    auto acc = grid->getAccessor();
+    const ValueT bg = values.front();
+    for (std::size_t k = 0, c = 0; k < d.nz; ++k)
+      for (std::size_t j = 0; j < d.ny; ++j)
+        for (std::size_t i = 0; i < d.nx; ++i, ++c)
+          if (values[c] != bg) acc.setValueOn(openvdb::Coord(int(i), int(j), int(k)), values[c]);
+  } else {
     openvdb::tools::Dense<ValueT, openvdb::tools::LayoutXYZ> dense(bbox, values.data());
     openvdb::tools::copyFromDense(dense, *grid, ValueT(0));
   }
