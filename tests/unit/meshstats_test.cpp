@@ -110,6 +110,16 @@ TEST(MeshStats, SelfIntersectionsAreCgalsPairForPair) {
   flat.vertices[4] = {0.5, 0, 0};  // face {0, 1, 4} collinear (exactly: halves are exact)
   cases.emplace_back("collinear face", flat);
   cases.emplace_back("intact sphere", testing::icosphere(4, 1.0));
+  // Two small interpenetrating spheres inside a cell of a grid sized by a
+  // huge coarse one: too crowded for the grid, CGAL's own search then.
+  Mesh crowd = testing::icosphere(1, 100.0);
+  for (const Vec3& c : {Vec3(0, 0, 0), Vec3(0.01, 0.002, 0)}) {
+    const Mesh t = testing::icosphere(3, 0.008, c);
+    const int base = int(crowd.vertices.size());
+    for (const Vec3& v : t.vertices) crowd.vertices.push_back(v);
+    for (const auto& f : t.faces) crowd.faces.push_back({f[0] + base, f[1] + base, f[2] + base});
+  }
+  cases.emplace_back("crowded cell", crowd);
   std::size_t total = 0;
   for (const auto& [name, mesh] : cases) {
     std::vector<std::pair<int, int>> ours, cgal;

@@ -42,6 +42,11 @@ bool to_surface_mesh(const Mesh& m, bool known_polygon_mesh, SM& sm) {
   return true;
 }
 
+// The grid search's limits (self_intersecting_faces): grid entries per face
+// on average, and faces in one cell (pairs tested there: its square).
+constexpr std::uint64_t kGridEntriesPerFace = 16;
+constexpr std::size_t kGridCellCrowd = 512;
+
 // Found on several threads: each pair as (lower, higher), sorted, so that the
 // list does not depend on the thread count.
 void normalise(std::vector<std::pair<int, int>>& out) {
@@ -132,6 +137,9 @@ bool self_intersecting_faces(const Mesh& m, std::vector<std::pair<int, int>>& ou
     }
   });
   for (std::size_t f = 0; f < nf; ++f) count[f + 1] += count[f];
+  // Faces of very different sizes (a few huge ones among many small ones)
+  // would fill the grid or crowd single cells: CGAL's own search then.
+  if (count[nf] > kGridEntriesPerFace * nb + 1024) return detail::cgal_self_intersecting_faces(m, out);
   std::vector<std::uint64_t> entry(count[nf]);
   pm::parallel_for(tbb::blocked_range<std::size_t>(0, nf, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t f = r.begin(); f != r.end(); ++f) {
@@ -147,7 +155,12 @@ bool self_intersecting_faces(const Mesh& m, std::vector<std::pair<int, int>>& ou
   tbb::parallel_sort(entry.begin(), entry.end());
   std::vector<std::size_t> group;  // starts of the cells' runs
   for (std::size_t e = 0; e < entry.size(); ++e)
-    if (e == 0 || entry[e] >> 32 != entry[e - 1] >> 32) group.push_back(e);
+    if (e == 0 || entry[e] >> 32 != entry[e - 1] >> 32) {
+      if (!group.empty() && e - group.back() > kGridCellCrowd) return detail::cgal_self_intersecting_faces(m, out);
+      group.push_back(e);
+    }
+  if (!group.empty() && entry.size() - group.back() > kGridCellCrowd)
+    return detail::cgal_self_intersecting_faces(m, out);
   group.push_back(entry.size());
 
   const K gt;
