@@ -220,8 +220,8 @@ constexpr std::size_t kScanGrain = std::size_t(1) << 18;  // voxels per chunk of
 void require_finite(const Volume& v, const std::string& what) {
   if (is_integer(v.type())) return;
   const std::size_t n = v.count();
-  // The first non-finite voxel, by a typed loop (get() per voxel was a call each).
-  // Chunks in parallel, the smallest index found: the same voxel whatever the schedule.
+  // The first non-finite voxel by typed loops over chunks in parallel: the
+  // smallest index found, the same voxel whatever the schedule.
   const std::size_t bad = visit_voxel_type(v.type(), [&](auto tag) -> std::size_t {
     using T = decltype(tag);
     const T* p = static_cast<const T*>(v.raw());
@@ -251,10 +251,9 @@ void require_finite(const Volume& v, const std::string& what) {
 ValueRange value_range(const Volume& v) {
   ValueRange r{std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
   const std::size_t n = v.count();
-  // A typed loop (get() per voxel was a call each); NaN voxels are skipped
-  // alike (std::min and std::max keep the first argument on NaN).
-  // Chunks in parallel, joined left to right: min and max keep the first of
-  // equal values (0 and -0), so the result is the serial loop's.
+  // Typed loops over chunks in parallel, joined left to right. NaN voxels
+  // are skipped (std::min and std::max keep the first argument on NaN), and
+  // of equal values (0 and -0) the first is kept, as in one serial loop.
   return visit_voxel_type(v.type(), [&](auto tag) {
     using T = decltype(tag);
     const T* p = static_cast<const T*>(v.raw());

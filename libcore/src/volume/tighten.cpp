@@ -247,13 +247,13 @@ PM_AVX2 double flow_values_x4(const float* cur, float* next, const std::uint32_t
 // the zero set (a face neighbour across it) within `near` of it.
 double flow_step(const Band& band, const std::vector<float>& cur, std::vector<float>& next,
                  const std::vector<float>& lo, const std::vector<float>& hi, const double h[3], double dt,
-                 double near, bool avx2 = cpu_has_avx2()) {
+                 double near, bool avx2 = true) {
   const double ix = 1 / h[0], iy = 1 / h[1], iz = 1 / h[2];
   const std::size_t n = band.size();
   const std::size_t chunks = std::max<std::size_t>(1, n / 4096 + 1);
   std::vector<double> moved(chunks, 0.0);
   const std::ptrdiff_t* o = band.off;
-  avx2 = avx2 && cpu_has_avx2();
+  avx2 = avx2 && cpu_has_avx2();  // the AVX2 copy where asked for and available
   pm::parallel_for(std::size_t(0), chunks, [&](std::size_t ch) {
     const std::size_t b = n * ch / chunks, e = n * (ch + 1) / chunks;
     double m = 0;

@@ -86,7 +86,6 @@ struct FrameSource {
   bool anatomical = true;
 };
 
-/// Volume: dims, geometry, and a typed voxel buffer.
 /// Calls f(T{}) with T the C++ type of voxel type t (std::uint8_t ... double),
 /// for typed loops over Volume::data<T>() instead of a get() call per voxel.
 template <class F>
@@ -106,6 +105,7 @@ decltype(auto) visit_voxel_type(VoxelType t, F&& f) {
   return f(float{});
 }
 
+/// Volume: dims, geometry, and a typed voxel buffer.
 class Volume {
  public:
   Volume() = default;
