@@ -127,8 +127,9 @@ struct SizeSearchResult {
 
 /// Run `mesher` at p.facet_size (target 0), or search the facet size whose
 /// mesh has about `target` vertices (CgalMeshResult::vertex_count): N ~
-/// 1/size^2 on a surface, so size *= (N / target)^exponent after each run,
-/// until within the tolerance or max_runs. A given
+/// 1/size^2 on a surface, so size *= (N / target)^exponent after the first
+/// run; after that the exponent is the log-log secant of the last two runs
+/// (within 0.5-4x the model's), until within the tolerance or max_runs. A given
 /// facet_distance stays fixed; by default it is facet_size / 4 at every size.
 /// Volume meshes with optimisation: the tries skip it, and the best size is
 /// run once more with it (perturbation and exudation add no vertices).
