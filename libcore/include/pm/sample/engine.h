@@ -712,15 +712,24 @@ class ParticleEngine {
   }
   /// Bins over the current particles (valid after measure()/rebin()) and a
   /// scan of the particles within `r` of x: f(index) for each.
+  /// Scans only the bins and sub-cells that meet the box x ± (r + the
+  /// largest move in the block since the binning): the same indices in the
+  /// same order as a scan of the whole 3x3x3 block (a bin's particles are
+  /// sorted by sub-cell, x fastest, as visit_box visits them).
   template <class F>
   void for_each_near(const Vec3& x, double r, F&& f) const {
     std::int32_t block[27];
     if (!bins_.block_of(x, block)) return;
+    double moved = 0;
+    for (int k = 0; k < 27; ++k)
+      if (block[k] >= 0) moved = std::max(moved, bin_moved_[std::size_t(block[k])]);
+    const double r2 = r * r, pad = r + moved;
     for (int k = 0; k < 27; ++k) {
       if (block[k] < 0) continue;
-      const std::size_t c = std::size_t(block[k]);
-      for (std::uint32_t q = bins_.begin(c); q < bins_.end(c); ++q)
-        if (norm2(pos_[q] - x) < r * r) f(std::size_t(q));
+      bins_.visit_box(std::size_t(block[k]), x, pad, [&](std::uint32_t b, std::uint32_t e) {
+        for (std::uint32_t q = b; q < e; ++q)
+          if (norm2(pos_[q] - x) < r2) f(std::size_t(q));
+      });
     }
   }
   void rebin(bool for_lists = false);
