@@ -1,6 +1,7 @@
 #include "pm/volume/tighten.h"
 
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <cmath>
@@ -304,6 +305,49 @@ TEST(Tighten, RejectsBadRadius) {
   p.radius = 1;
   p.upsample = 0;
   EXPECT_THROW(tighten(m, p), UsageError);
+}
+
+// tighten_labels runs labels side by side on several threads and hands them
+// on in label order; the distances are those of one label at a time, bit for
+// bit, and a sink that fails stops the hand-over at that label.
+TEST(Tighten, PerLabelSideBySideEqualsOneAtATime) {
+  Volume lv(VoxelType::u8, {18, 16, 14});
+  for (std::size_t k = 0; k < 14; ++k)
+    for (std::size_t j = 0; j < 16; ++j)
+      for (std::size_t i = 0; i < 18; ++i) {
+        int l = i < 8 ? 0 : 3;
+        if (i >= 2 && i < 6 && j >= 3 && j < 12 && k >= 4 && k < 10) l = 1;
+        if (i >= 10 && i < 16 && j >= 5 && j < 11 && k >= 3 && k < 11) l = 2;
+        lv.set(i, j, k, l);
+      }
+  TightenParams p;
+  p.radius = 1;
+  auto run = [&](int threads) {
+    tbb::global_control gc(tbb::global_control::max_allowed_parallelism, std::size_t(threads));
+    std::vector<std::pair<int, std::vector<float>>> out;
+    tighten_labels(lv, p, [&](int l, TightenResult&& r) {
+      const float* f = r.distance.data<float>();
+      out.emplace_back(l, std::vector<float>(f, f + r.distance.count()));
+    });
+    return out;
+  };
+  const auto one = run(1), four = run(4);
+  ASSERT_EQ(one.size(), 4u);
+  ASSERT_EQ(four.size(), 4u);
+  for (std::size_t k = 0; k < 4; ++k) {
+    EXPECT_EQ(one[k].first, int(k));
+    EXPECT_EQ(four[k].first, int(k));
+    EXPECT_TRUE(one[k].second == four[k].second) << "label " << k;
+  }
+  tbb::global_control gc(tbb::global_control::max_allowed_parallelism, 4);
+  std::vector<int> seen;
+  EXPECT_THROW(tighten_labels(lv, p,
+                              [&](int l, TightenResult&&) {
+                                if (l == 2) throw InputError("sink refused label 2");
+                                seen.push_back(l);
+                              }),
+               InputError);
+  EXPECT_EQ(seen, (std::vector<int>{0, 1}));
 }
 
 // Chapter 6: a 20^3 label map, label 1 for x < 9.5, label 2 beyond, and a

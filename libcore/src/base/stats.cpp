@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <mutex>
 
 #include "pm/base/log.h"
 #include "pm/base/test_hold.h"
@@ -19,6 +20,9 @@ Json& stats() {
 }
 
 void add_seconds(const std::string& name, double s) {
+  // Stages may run side by side (tighten's labels): one writer at a time.
+  static std::mutex mutex;
+  const std::lock_guard<std::mutex> lock(mutex);
   Json& sec = stats()["seconds"];
   if (!sec.is_object()) sec = Json::object();
   const double prev = sec.contains(name) ? sec[name].get<double>() : 0.0;

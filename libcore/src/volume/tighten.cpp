@@ -2,9 +2,13 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <exception>
+#include <mutex>
 #include <cfloat>
 #include <cmath>
 #include <limits>
@@ -90,6 +94,11 @@ std::vector<std::uint8_t> binary_mask_inside(const Volume& mask, const std::stri
   for (std::size_t c = 0; c < n; ++c) inside[c] = get(c) == in ? 1 : 0;
   return inside;
 }
+
+// tighten_labels: bytes a label in flight holds per padded, upsampled voxel
+// (measured peak), and the memory the labels beyond the first may add.
+constexpr double kTightenBytesPerVoxel = 56.0;
+constexpr double kTightenSideBySideBytes = 1024.0 * 1024.0 * 1024.0;
 
 namespace {
 
@@ -726,37 +735,95 @@ void tighten_labels(const Volume& lv, const TightenParams& p,
   const Dims od{(n0.nx - 1) * K + 1, (n0.ny - 1) * K + 1, (n0.nz - 1) * K + 1};
   Geometry go = g0;
   go.directions = g0.directions * (1.0 / double(K));
-  Volume mask(VoxelType::u8, pd, gp);
-  std::uint8_t* m = mask.data<std::uint8_t>();
-  for (const auto& [label, n] : counts) {
-    (void)n;
-    for (std::size_t c = 0; c < padded.size(); ++c) m[c] = padded[c] == label ? 1 : 0;
-    TightenResult r;
+  // Labels are tightened side by side, one per thread (each label's own
+  // loops share the threads that are free), and handed to the sink in label
+  // order: a result waits until every smaller label has been handed on. The
+  // results are those of one label at a time; the first failing label in
+  // label order is the one reported, after the labels before it.
+  std::vector<int> order;
+  for (const auto& kv : counts) order.push_back(kv.first);
+  const std::size_t nl = order.size();
+  std::vector<std::optional<TightenResult>> done(nl);
+  std::vector<std::exception_ptr> failed(nl);
+  std::mutex emit_mutex;
+  std::size_t next_emit = 0;
+  bool stop = false;
+  std::exception_ptr sink_error;
+  auto crop = [&](const Volume& full) {  // the padded, upsampled grid back to the label map's extent
+    if (full.empty()) return Volume();
+    const Dims& fd = full.dims();
+    Volume o(VoxelType::f32, od, go);
+    const float* src = full.data<float>();
+    float* dst = o.data<float>();
+    for (std::size_t k = 0; k < od.nz; ++k)
+      for (std::size_t j = 0; j < od.ny; ++j)
+        for (std::size_t i = 0; i < od.nx; ++i)
+          dst[i + od.nx * (j + od.ny * k)] = src[(i + off) + fd.nx * ((j + off) + fd.ny * (k + off))];
+    return o;
+  };
+  auto one_label = [&](std::size_t li) {
+    const int label = order[li];
     try {
-      r = tighten(mask, q);
-    } catch (const InputError& e) {
-      throw InputError("label " + std::to_string(label) + ": " + e.what());
+      Volume mask(VoxelType::u8, pd, gp);
+      std::uint8_t* m = mask.data<std::uint8_t>();
+      for (std::size_t c = 0; c < padded.size(); ++c) m[c] = padded[c] == label ? 1 : 0;
+      TightenResult r;
+      try {
+        r = tighten(mask, q);
+      } catch (const InputError& e) {
+        throw InputError("label " + std::to_string(label) + ": " + e.what());
+      }
+      r.distance = crop(r.distance);
+      if (p.keep_mortar) {
+        r.round = crop(r.round);
+        r.fillet = crop(r.fillet);
+      }
+      const std::lock_guard<std::mutex> lock(emit_mutex);
+      done[li] = std::move(r);
+    } catch (...) {
+      const std::lock_guard<std::mutex> lock(emit_mutex);
+      failed[li] = std::current_exception();
     }
-    // Crop the padded, upsampled grid back to the label map's extent.
-    auto crop = [&](const Volume& full) {
-      if (full.empty()) return Volume();
-      const Dims& fd = full.dims();
-      Volume o(VoxelType::f32, od, go);
-      const float* src = full.data<float>();
-      float* dst = o.data<float>();
-      for (std::size_t k = 0; k < od.nz; ++k)
-        for (std::size_t j = 0; j < od.ny; ++j)
-          for (std::size_t i = 0; i < od.nx; ++i)
-            dst[i + od.nx * (j + od.ny * k)] = src[(i + off) + fd.nx * ((j + off) + fd.ny * (k + off))];
-      return o;
-    };
-    r.distance = crop(r.distance);
-    if (p.keep_mortar) {
-      r.round = crop(r.round);
-      r.fillet = crop(r.fillet);
+    const std::lock_guard<std::mutex> lock(emit_mutex);
+    while (!stop && next_emit < nl && (done[next_emit] || failed[next_emit])) {
+      if (failed[next_emit]) {
+        stop = true;
+        break;
+      }
+      try {
+        sink(order[next_emit], std::move(*done[next_emit]));
+      } catch (...) {
+        sink_error = std::current_exception();
+        stop = true;
+        break;
+      }
+      done[next_emit].reset();
+      ++next_emit;
     }
-    sink(label, std::move(r));
-  }
+  };
+  // Each label in flight holds its own grids (about kTightenBytesPerVoxel per
+  // padded, upsampled voxel at its peak, the final re-distancing): labels go
+  // side by side only while the extra ones fit in kTightenSideBySideBytes
+  // (frog5, 4.3M voxels: two at a time, 4.6 -> 4.1 s, peak 220 -> 460 MB; the
+  // full-resolution frog one at a time).
+  const double label_bytes = kTightenBytesPerVoxel * double((pd.nx - 1) * K + 1) * double((pd.ny - 1) * K + 1) *
+                             double((pd.nz - 1) * K + 1);
+  const std::size_t extra = std::size_t(kTightenSideBySideBytes / std::max(label_bytes, 1.0));
+  const std::size_t workers = std::min<std::size_t>(
+      {nl, std::size_t(std::max(1, tbb::this_task_arena::max_concurrency())), 1 + extra});
+  std::atomic<std::size_t> next_label{0};
+  pm::parallel_for(std::size_t(0), workers, [&](std::size_t) {
+    for (std::size_t li; (li = next_label.fetch_add(1)) < nl;) {
+      {
+        const std::lock_guard<std::mutex> lock(emit_mutex);
+        if (stop) return;
+      }
+      tbb::this_task_arena::isolate([&] { one_label(li); });
+    }
+  });
+  if (sink_error) std::rethrow_exception(sink_error);
+  for (std::size_t li = 0; li < nl; ++li)
+    if (failed[li]) std::rethrow_exception(failed[li]);
 }
 
 }  // namespace pm
