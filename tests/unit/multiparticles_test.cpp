@@ -176,6 +176,59 @@ TEST(MultiParticles, JunctionRepairPutsMissedCurvesOnTheLine) {
   EXPECT_EQ(r.positions.size() + r.junction_repairs, plain.positions.size());
 }
 
+// A thin fin of material 1 (a 16 degree wedge along z) in background 0: the
+// interface folds at the fin's edge, where particles on its two faces have
+// normals 164 degrees apart and the normal weighting hides them from each
+// other. Two of them closer than h/4 make a sliver of a triangle; the repair
+// merges such a pair into one particle at its middle, on the interface.
+TEST(MultiParticles, RepairMergesOneInterfacesPairsAcrossAFold) {
+  MaterialSet m;
+  test::add_material(
+      m, 0,
+      [](const Vec3&, Vec3& g) {
+        g = {};
+        return 0.0;
+      },
+      test::cube(1.0));
+  const double t = 8.0 * M_PI / 180.0;
+  const Vec3 na{std::sin(t), -std::cos(t), 0}, nb{std::sin(t), std::cos(t), 0};
+  test::add_material(
+      m, 1,
+      [na, nb](const Vec3& x, Vec3& g) {
+        const double a = dot(na, x), b = dot(nb, x);
+        g = a < b ? na : nb;
+        return std::min(a, b);
+      },
+      test::cube(1.0));
+  const std::vector<JunctionSeed> seeds = junction_seeds_from_materials(m);
+  const double s = 0.1;
+  MultiParticleParams p = quiet(s);
+  p.repair_junctions = false;
+  const MultiParticleResult plain = distribute_multi_particles(m, seeds, nullptr, p);
+  p.repair_junctions = true;
+  const MultiParticleResult r = distribute_multi_particles(m, seeds, nullptr, p);
+  auto closest_pair = [](const MultiParticleResult& q) {
+    double best = 1e300;
+    for (std::size_t a = 0; a < q.positions.size(); ++a)
+      for (std::size_t b = a + 1; b < q.positions.size(); ++b)
+        best = std::min(best, norm(q.positions[a] - q.positions[b]));
+    return best;
+  };
+  EXPECT_EQ(plain.close_pairs_merged, 0u);
+  ASSERT_LT(closest_pair(plain), 0.25 * s);  // the situation the repair is for
+  EXPECT_GT(r.close_pairs_merged, 0u);
+  EXPECT_EQ(r.junction_repairs, 0u);  // two materials: no triple junction
+  EXPECT_GE(closest_pair(r), 0.25 * s);
+  EXPECT_EQ(r.positions.size() + r.close_pairs_merged, plain.positions.size());
+  // Every particle, the merged ones among them, on the interface f_1 = f_0.
+  // (Not expect_on_junctions: its normal probe steps 1e-4, farther than the
+  // fin is thick next to its edge.)
+  for (std::size_t i = 0; i < r.positions.size(); ++i) {
+    EXPECT_EQ(r.junction[i], 2);
+    EXPECT_LE(std::fabs(f_of(m, 1, r.positions[i]) - f_of(m, 0, r.positions[i])), 1e-6) << i;
+  }
+}
+
 TEST(MultiParticles, QuadruplePointIsOneParticleAndCurvesEndThere) {
   const MaterialSet m = test::four_tetrahedral();
   const std::vector<JunctionSeed> seeds = junction_seeds_from_materials(m, 0.1);

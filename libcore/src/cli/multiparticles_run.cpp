@@ -45,7 +45,7 @@ void record_stats(const pm::MultiParticleResult& r) {
   st["levels"] = levels;
   st["counts"] = {{"particles", r.positions.size()},
                   {"field_evaluations", r.field_evaluations},
-                  {"junction_repairs", r.junction_repairs}};
+                  {"junction_repairs", r.junction_repairs}, {"close_pairs_merged", r.close_pairs_merged}};
   st["engine"] = pm::engine_stats_json(r.engine);
   st["max_residual"] = r.max_residual;
 }

@@ -78,7 +78,7 @@ class MultiRun {
   void thin(std::vector<Seed>& seeds, double fraction) const;
   // Place seeds on their cells; returns the placed points of those that made it.
   std::vector<Point> place(Engine& e, const std::vector<Seed>& seeds, std::size_t& failed) const;
-  std::size_t repair_junctions(Engine& e);
+  std::size_t repair_junctions(Engine& e, std::size_t& merged);
 
   const MaterialSet& m_;
   const SizingField* sizing_;
@@ -129,18 +129,19 @@ std::vector<Point> MultiRun::place(Engine& e, const std::vector<Seed>& seeds, st
 // {a,b,c}, when the projection lands within half a spacing and no curve or
 // point particle is already there. Otherwise the Delaunay mesh gets a sliver
 // spanning the two interfaces. Sequential in bin order: deterministic.
-std::size_t MultiRun::repair_junctions(Engine& e) {
+std::size_t MultiRun::repair_junctions(Engine& e, std::size_t& merged) {
+  merged = 0;
   e.rebin();
   auto& parts = e.particles();
   const std::size_t n = parts.size();
   std::vector<char> gone(n, 0);
   std::vector<Point> added;
-  std::vector<double> added_h;
+  std::vector<char> on_junction;  // added[k] is a triple-junction particle (else a merged pair's)
   Probe pr;
   auto near_junction = [&](const Vec3& x, double r) {
     bool near = false;
     e.for_each_near(x, r, [&](std::size_t q) { near = near || c_.cell(parts[q].p).count > 2; });
-    for (const Point& a : added) near = near || norm2(a.x - x) < r * r;
+    for (std::size_t k = 0; k < added.size(); ++k) near = near || (on_junction[k] && norm2(added[k].x - x) < r * r);
     return near;
   };
   for (std::size_t i = 0; i < n; ++i) {
@@ -149,9 +150,24 @@ std::size_t MultiRun::repair_junctions(Engine& e) {
     e.for_each_near(parts[i].p.x, kRepairDistance * parts[i].spacing, [&](std::size_t j) {
       const auto& P = parts[i];
       const auto& Q = parts[j];
-      if (gone[i] || j == i || gone[j] || c_.cell(Q.p).count != 2 || Q.p.s.cell == P.p.s.cell) return;
+      if (gone[i] || j == i || gone[j] || c_.cell(Q.p).count != 2) return;
       const double hmin = std::min(P.spacing, Q.spacing);
       if (norm2(Q.p.x - P.p.x) >= kRepairDistance * kRepairDistance * hmin * hmin) return;
+      if (Q.p.s.cell == P.p.s.cell) {
+        // One interface folding sharply between them (normals 90 degrees or
+        // more apart: the normal weighting hides them from each other): one
+        // particle at their middle, projected onto the interface.
+        const Vec3 mid = (P.p.x + Q.p.x) * 0.5;
+        Point q;
+        if (!c_.place(mid, P.p, kPlaceSteps, hmin, q, pr)) return;
+        if ((sizing_ && !sizing_->covers(q.x)) || norm2(q.x - mid) >= kRepairLanding * kRepairLanding * hmin * hmin)
+          return;
+        added.push_back(q);
+        on_junction.push_back(0);
+        ++merged;
+        gone[i] = gone[j] = 1;
+        return;
+      }
       const JunctionCell& cj = c_.cell(Q.p);
       std::vector<int> mats(ci.m.begin(), ci.m.begin() + 2);
       for (int t = 0; t < 2; ++t)
@@ -167,7 +183,7 @@ std::size_t MultiRun::repair_junctions(Engine& e) {
           near_junction(q.x, kRepairClearance * h))
         return;
       added.push_back(q);
-      added_h.push_back(h);
+      on_junction.push_back(1);
       gone[i] = gone[j] = 1;
     });
   }
@@ -178,7 +194,7 @@ std::size_t MultiRun::repair_junctions(Engine& e) {
     if (!gone[i]) parts[k++] = parts[i];
   parts.resize(k);
   for (const Point& q : added) e.add(q, 0, true);
-  return added.size();
+  return added.size() - merged;
 }
 
 MultiParticleResult MultiRun::run(const std::vector<JunctionSeed>& seeds) {
@@ -271,7 +287,7 @@ MultiParticleResult MultiRun::run(const std::vector<JunctionSeed>& seeds) {
                      " (do the materials touch? are the seeds from the same label map?)");
   }
 
-  if (p_.surfaces && p_.repair_junctions) res.junction_repairs = repair_junctions(e);
+  if (p_.surfaces && p_.repair_junctions) res.junction_repairs = repair_junctions(e, res.close_pairs_merged);
 
   // Output, level by level, in a deterministic order (level, then bin order).
   e.stable_order([&](const Engine::Particle& q) { return level_of(c_.cell(q.p)); });

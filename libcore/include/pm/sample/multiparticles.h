@@ -72,7 +72,8 @@ struct MultiParticleParams {
   double population_tolerance = 0.001;  ///< converged with at most this fraction wanting to split/die
   bool surfaces = true;        ///< sample the 2-cells (false: stop after the curves)
   /// After the surfaces: merge surface particles of two interfaces sharing a
-  /// material that are closer than h/4 into one triple-junction particle.
+  /// material that are closer than h/4 into one triple-junction particle, and
+  /// two of one interface closer than h/4 into one at their middle.
   bool repair_junctions = true;
   /// Quadruple points of one label quad closer than this fraction of the
   /// local spacing are one point (cull radius).
@@ -122,6 +123,7 @@ struct MultiParticleResult {
   /// Pairs of surface particles of two interfaces sharing a material, closer
   /// than h/4, replaced by one particle on their triple junction.
   std::size_t junction_repairs = 0;
+  std::size_t close_pairs_merged = 0;  ///< same-interface pairs closer than h/4 merged into one (repair_junctions)
 };
 
 /// Sample every junction of the material set.
