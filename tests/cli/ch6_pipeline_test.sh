@@ -38,15 +38,15 @@ for l, m in q["materials"].items():
     t = m["topology"]
     assert t["watertight"] and t["manifold"] and t["components"] == 1, (l, t)
 PY
-# MA_SIDE=inside: each material's inner medial axis only (their union is the interfaces' medial
-# axis): the same inner points as with both sides, no outer ones, so the feature size and the
-# sizing field can only grow.
-make -s -f "$SRC/Makefile.pipeline" materials INPUT="$T/tiny.nrrd" OUT="$T/in" BIN="$BIN" R=1 SAMPLER=$SAMPLER \
-  MA_SIDE=inside 2> "$T/make_in.err" || { cat "$T/make_in.err" >&2; exit 1; }
+# MA_SIDE=inside (the default): each material's inner medial axis only (their union is the
+# interfaces' medial axis): the same inner points as with MA_SIDE=both, no outer ones, so the
+# feature size and the sizing field can only grow.
+make -s -f "$SRC/Makefile.pipeline" materials INPUT="$T/tiny.nrrd" OUT="$T/both" BIN="$BIN" R=1 SAMPLER=$SAMPLER \
+  MA_SIDE=both 2> "$T/make_both.err" || { cat "$T/make_both.err" >&2; exit 1; }
 for l in 0 1 2; do
-  "$BIN/volconv" --info "$T/out/work/h.nrrd" > "$T/h_both.json"
-  "$BIN/volconv" --info "$T/in/work/h.nrrd" > "$T/h_in.json"
-  python3 - "$T/out/work/medialaxis_$l.json" "$T/in/work/medialaxis_$l.json" "$T/h_both.json" "$T/h_in.json" <<'PY'
+  "$BIN/volconv" --info "$T/both/work/h.nrrd" > "$T/h_both.json"
+  "$BIN/volconv" --info "$T/out/work/h.nrrd" > "$T/h_in.json"
+  python3 - "$T/both/work/medialaxis_$l.json" "$T/out/work/medialaxis_$l.json" "$T/h_both.json" "$T/h_in.json" <<'PY'
 import json, sys
 both, inside, hb, hi = (json.load(open(p)) for p in sys.argv[1:5])
 assert inside["counts"]["outer"] == 0, inside["counts"]
@@ -54,4 +54,8 @@ assert inside["counts"]["inner"] == both["counts"]["inner"], (inside["counts"], 
 assert hi["min"] >= hb["min"] - 1e-6 and hi["mean"] >= hb["mean"] - 1e-6, (hi, hb)
 PY
 done
+python3 - "$T/both"/work/medialaxis_[012].json <<'PY'
+import json, sys
+assert sum(json.load(open(p))["counts"]["outer"] for p in sys.argv[1:]) > 0  # MA_SIDE=both does find outer points
+PY
 echo "ch6 pipeline passed ($SAMPLER)"

@@ -173,12 +173,16 @@ Volume grey_distance(const Volume& v, double iso, const std::string& what) {
   return d;
 }
 
-// medialaxis (side both, defaults) as the sizingfield tool reads it back;
-// none is an error unless `may_be_empty`.
-std::vector<Vec3> medial_points(const Volume& sdf, const std::string& what, bool may_be_empty = false) {
+// medialaxis (defaults; --side `side`) as the sizingfield tool reads it
+// back; none is an error unless `may_be_empty`.
+std::vector<Vec3> medial_points(const Volume& sdf, const std::string& what, bool may_be_empty = false,
+                                const std::string& side = "both") {
   MedialAxisResult r;
   try {
-    r = medial_axis(sdf, {});
+    MedialAxisParams mp;
+    mp.inside = side != "outside";
+    mp.outside = side != "inside";
+    r = medial_axis(sdf, mp);
   } catch (const InputError& e) {
     throw InputError(what + ": " + e.what());
   }
@@ -491,6 +495,8 @@ MaterialsPipelineResult mesh_materials_pipeline(const Volume& in, const Material
   if (!(p.eps > 0)) throw UsageError("--eps " + num(p.eps) + "; expected > 0");
   if (!(p.delta > 0)) throw UsageError("--delta " + num(p.delta) + "; expected > 0 (e.g. 0.3)");
   if (p.spacing < 0) throw UsageError("--spacing " + num(p.spacing) + "; expected > 0 world units (0 = sizing field)");
+  if (p.ma_side != "inside" && p.ma_side != "outside" && p.ma_side != "both")
+    throw UsageError("MA_SIDE " + quote(p.ma_side) + "; expected inside, outside or both");
   const bool morph = !(p.morph_ops == "none" && p.downsample == 1);
   Stages stages("ch6", (morph ? 6 : 5) + (p.spacing > 0 ? 0 : 2), p.progress, res.seconds);
 
@@ -582,7 +588,7 @@ MaterialsPipelineResult mesh_materials_pipeline(const Volume& in, const Material
     std::vector<std::vector<Vec3>> mas(sdfs.size());
     stages.run("medialaxis", [&] {
       for (std::size_t i = 0; i < sdfs.size(); ++i)
-        mas[i] = medial_points(sdfs[i], what + " label " + std::to_string(labels[i]), true);
+        mas[i] = medial_points(sdfs[i], what + " label " + std::to_string(labels[i]), true, p.ma_side);
     });
     stages.run("sizingfield", [&] {
       SizingFieldParams sp;
