@@ -86,9 +86,9 @@ void add_multiparticles_options(CLI::App& app, MultiParticlesRun& cfg) {
                        "factor is the default here: quadratic measured 2-3x slower on label maps");
   app.add_flag("--no-surfaces", cfg.no_surfaces, "Stop after the curves (points and curves only)");
   app.add_flag("--no-junction-repair", cfg.no_repair,
-               "Keep surface particles of two interfaces sharing a material that come closer than h/4 (by "
-               "default such a pair becomes one particle on their triple junction, where the curve level "
-               "left a gap)");
+               "Keep surface particles closer than h/4 (by default two of interfaces sharing a material "
+               "become one particle on their triple junction, where the curve level left a gap, and two of "
+               "one interface, on the two faces of a fin thinner than the spacing, one at their middle)");
   app.add_option("-o,--output", cfg.output, "Output point set (.ply .vtp .vtk), world units")->required();
 
   pm::add_frame_option(app, cfg.frame);
