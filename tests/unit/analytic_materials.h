@@ -58,6 +58,18 @@ inline void add_material(MaterialSet& m, int label, std::function<double(const V
       box, res, "material " + std::to_string(label)));
 }
 
+/// A background material: f = 0 everywhere (a material is inside where its
+/// f is the largest, so the others show where their f > 0).
+inline void add_background(MaterialSet& m, int label, double half = 1.0) {
+  add_material(
+      m, label,
+      [](const Vec3&, Vec3& g) {
+        g = {};
+        return 0.0;
+      },
+      cube(half));
+}
+
 /// Three materials (labels 0, 1, 2) in 120° wedges around the z axis:
 /// f_i = n_i·(x, y) + c (i - 1)(x² + y²), n_i at 90°, 210°, 330°. The z axis
 /// is the triple line for any c; c != 0 curves the interfaces.
@@ -116,13 +128,7 @@ inline std::function<double(const Vec3&, Vec3&)> ball(Vec3 c, double r) {
 /// spheres overlap: their triple circle with the background lies at x = 0.075.
 inline MaterialSet two_spheres(double half = 1.0) {
   MaterialSet m;
-  add_material(
-      m, 0,
-      [](const Vec3&, Vec3& g) {
-        g = {};
-        return 0.0;
-      },
-      cube(half));
+  add_background(m, 0, half);
   add_material(m, 1, ball({-0.3, 0, 0}, 0.5), cube(half));
   add_material(m, 2, ball({0.3, 0, 0}, 0.4), cube(half));
   return m;

@@ -183,13 +183,7 @@ TEST(MultiParticles, JunctionRepairPutsMissedCurvesOnTheLine) {
 // merges such a pair into one particle at its middle, on the interface.
 TEST(MultiParticles, RepairMergesOneInterfacesPairsAcrossAFold) {
   MaterialSet m;
-  test::add_material(
-      m, 0,
-      [](const Vec3&, Vec3& g) {
-        g = {};
-        return 0.0;
-      },
-      test::cube(1.0));
+  test::add_background(m, 0);
   const double t = 8.0 * M_PI / 180.0;
   const Vec3 na{std::sin(t), -std::cos(t), 0}, nb{std::sin(t), std::cos(t), 0};
   test::add_material(
@@ -299,13 +293,7 @@ TEST(MultiParticles, DeterministicForAnyThreadCount) {
 // circle keeps the level populated.
 MaterialSet short_and_long_circles() {
   MaterialSet m;
-  test::add_material(
-      m, 0,
-      [](const Vec3&, Vec3& g) {
-        g = {};
-        return 0.0;
-      },
-      test::cube(1.0));
+  test::add_background(m, 0);
   test::add_material(m, 1, test::ball({-0.55, 0, 0}, 0.2), test::cube(1.0));
   test::add_material(m, 2, test::ball({-0.3, 0, 0}, 0.15), test::cube(1.0));
   test::add_material(m, 3, test::ball({0.35, 0, 0}, 0.4), test::cube(1.0));
