@@ -4,16 +4,19 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <random>
 #include <set>
 #include <string>
 #include <vector>
 
 #include "pm/base/error.h"
 #include "pm/io/mesh.h"
+#include "pm/io/number_text.h"
 #include "pm/io/ply.h"
 #include "test_util.h"
 
@@ -85,6 +88,32 @@ TEST_P(PlyRoundTrip, KeepsNormalsScalarsAndFaceProperties) {
 }
 
 INSTANTIATE_TEST_SUITE_P(AsciiAndBinary, PlyRoundTrip, ::testing::Values(false, true));
+
+// The ASCII writers' numbers are printf's %.*g text, character for character
+// (append_number formats them with std::to_chars), and read back to the value.
+TEST(NumberText, IsPrintfsGeneralFormat) {
+  std::mt19937_64 rng(7);
+  std::vector<double> vs = {0.0, -0.0, 1.0, -1.0, 0.1, 1e-7, 123456789.0, 1e21, 1e-300, 5e-324, 1.7976931348623157e308,
+                            0.5, 2.5, 1e16, 123456.789e-20, std::nan(""), HUGE_VAL, -HUGE_VAL};
+  std::uniform_real_distribution<double> mant(-1.0, 1.0);
+  std::uniform_int_distribution<int> ex(-40, 40);
+  for (int k = 0; k < 20000; ++k) vs.push_back(std::ldexp(mant(rng), ex(rng)));
+  for (double v : vs)
+    for (int digits : {kFloatDigits, kDoubleDigits, 6}) {
+      char b[64];
+      std::snprintf(b, sizeof b, "%.*g", digits, v);
+      std::string got;
+      append_number(got, v, digits);
+      ASSERT_EQ(got, std::string(b)) << digits;
+      if (digits == kDoubleDigits && std::isfinite(v)) {
+        ASSERT_EQ(std::strtod(got.c_str(), nullptr), v);
+      }
+    }
+  for (int k = 0; k < 20000; ++k) {  // floats in 9 digits read back to the float
+    const float f = float(std::ldexp(mant(rng), ex(rng)));
+    ASSERT_EQ(std::strtof(number_text(double(f), kFloatDigits).c_str(), nullptr), f);
+  }
+}
 
 TEST(Ply, PointSetHasNoFaceElement) {
   Mesh m;
