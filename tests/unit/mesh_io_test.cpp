@@ -156,6 +156,25 @@ TEST(Ply, DoublesKeepEveryBit) {
   EXPECT_GT(std::fabs(read_ply(path).vertices[0].x - z), 1e-9);
 }
 
+// ASCII numbers other tools write: a leading '+', exponents, hexadecimal,
+// subnormals; each reads as strtod reads it (std::from_chars takes the plain
+// ones, strtod the rest).
+TEST(Ply, AsciiNumbersReadAsStrtodReadsThem) {
+  const char* tok[9] = {"+1.5", "-2.25e+2", "0x1p-3", "1e-310", "3", ".5", "-0", "7.0000000000000001", "1E2"};
+  std::string s = "ply\nformat ascii 1.0\nelement vertex 3\nproperty double x\nproperty double y\n"
+                  "property double z\nend_header\n";
+  for (int k = 0; k < 9; ++k) s += std::string(tok[k]) + (k % 3 == 2 ? "\n" : " ");
+  const std::string path = test::temp_dir() + "/tokens.ply";
+  std::ofstream(path) << s;
+  const Mesh r = read_ply(path);
+  ASSERT_EQ(r.vertices.size(), 3u);
+  for (int k = 0; k < 9; ++k) {
+    const double got = r.vertices[std::size_t(k / 3)][k % 3];
+    EXPECT_EQ(got, std::strtod(tok[k], nullptr)) << tok[k];
+    EXPECT_EQ(std::signbit(got), std::signbit(std::strtod(tok[k], nullptr))) << tok[k];
+  }
+}
+
 TEST(Ply, BigEndianWrittenByHand) {
   std::string s =
       "ply\nformat binary_big_endian 1.0\ncomment hand-made\n"
