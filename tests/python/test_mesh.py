@@ -161,14 +161,20 @@ def test_mesh_surface_is_makefile_ch5(tmp_path):
     np.testing.assert_allclose(points, m.points, rtol=0, atol=1e-6 * np.abs(m.points).max())
 
 
-def test_mesh_materials_is_makefile_ch6(tmp_path):
+@pytest.mark.parametrize("ma_side", ["inside", "both"])
+def test_mesh_materials_is_makefile_ch6(tmp_path, ma_side):
     _nifti(tmp_path / "cube.nii", two_material_cube().astype(np.int16), 1.0, (0.0, 0.0, 0.0))
-    _make("materials", INPUT=tmp_path / "cube.nii", OUT=tmp_path / "out")
+    _make("materials", INPUT=tmp_path / "cube.nii", OUT=tmp_path / "out", MA_SIDE=ma_side)
     points, triangles, props = read_ply(tmp_path / "out" / "interfaces.ply")
-    m = pm.mesh_materials(pm.read_volume(tmp_path / "cube.nii"), progress=False)
+    m = pm.mesh_materials(pm.read_volume(tmp_path / "cube.nii"), ma_side=ma_side, progress=False)
     assert np.array_equal(triangles, m.triangles)
     assert np.array_equal(np.stack([props["label_a"], props["label_b"]], axis=1), m.pairs)
     np.testing.assert_allclose(points, m.points, rtol=0, atol=1e-6 * np.abs(m.points).max())
+
+
+def test_mesh_materials_refuses_an_unknown_medial_axis_side():
+    with pytest.raises(ValueError, match=r'MA_SIDE "up"; expected inside, outside or both'):
+        pm.mesh_materials(two_material_cube(), ma_side="up", progress=False)
 
 
 def test_ctrl_c_stops_a_pipeline():

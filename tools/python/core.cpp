@@ -497,7 +497,7 @@ py::dict mesh_materials(const py::array& labels, const py::object& origin, const
                         const py::object& directions, const std::string& merge, std::size_t min_voxels,
                         long pad, const std::string& pad_value, const std::string& morph_ops, int downsample,
                         std::optional<double> radius, std::optional<int> upsample, double eps, double delta,
-                        std::optional<double> hmin,
+                        std::optional<double> hmin, const std::string& ma_side,
                         std::optional<double> spacing, int decimate, int improve, bool tetrahedra, std::uint64_t seed,
                         int threads, py::object progress) {
   if (spacing && !(*spacing > 0)) throw py::value_error("spacing: " + num(*spacing) + "; expected > 0 (world units)");
@@ -520,6 +520,7 @@ py::dict mesh_materials(const py::array& labels, const py::object& origin, const
   p.eps = eps;
   p.delta = delta;
   p.hmin = hmin.value_or(-1);
+  p.ma_side = ma_side;
   p.spacing = spacing.value_or(0);
   p.decimate = decimate;
   p.improve = improve;
@@ -585,6 +586,6 @@ PYBIND11_MODULE(_core, m) {
   m.def("mesh_materials", &mesh_materials, py::arg("labels"), py::arg("origin"), py::arg("voxel_spacing"),
         py::arg("directions"), py::arg("merge"), py::arg("min_voxels"), py::arg("pad"), py::arg("pad_value"),
         py::arg("morph_ops"), py::arg("downsample"), py::arg("radius"), py::arg("upsample"), py::arg("eps"),
-        py::arg("delta"), py::arg("hmin"), py::arg("spacing"), py::arg("decimate"), py::arg("improve"),
-        py::arg("tetrahedra"), py::arg("seed"), py::arg("threads"), py::arg("progress"));
+        py::arg("delta"), py::arg("hmin"), py::arg("ma_side"), py::arg("spacing"), py::arg("decimate"),
+        py::arg("improve"), py::arg("tetrahedra"), py::arg("seed"), py::arg("threads"), py::arg("progress"));
 }

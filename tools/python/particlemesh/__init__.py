@@ -399,17 +399,18 @@ def mesh_materials(labels, *, merge: Optional[str] = None, min_voxels: int = 0, 
                    pad_value: Optional[Union[str, int]] = None, morph_ops: str = "close:ball,open:ball",
                    downsample: int = 1, radius: Optional[float] = None, upsample: Optional[int] = None,
                    eps: float = 0.3, delta: float = 0.05,
-                   hmin: Optional[float] = None, spacing: Optional[float] = None, decimate: int = 2,
-                   improve: int = 3, tetrahedra: bool = False, seed: int = 1, threads: int = 0, origin=None,
-                   voxel_spacing=None,
-                   directions=None, progress=None) -> MaterialMesh:
+                   hmin: Optional[float] = None, ma_side: str = "inside", spacing: Optional[float] = None,
+                   decimate: int = 2, improve: int = 3, tetrahedra: bool = False, seed: int = 1, threads: int = 0,
+                   origin=None, voxel_spacing=None, directions=None, progress=None) -> MaterialMesh:
     """The Chapter 6 pipeline (`make -f Makefile.pipeline materials`) on a label map.
 
     labels: a Volume or 3-D integer array; every label is a material (0
     included). merge ("1,2:1 3-5:2"), min_voxels, pad/pad_value -> morphology
     per label (morph_ops, or "none"; downsample) with voting fill -> tighten
     per label (radius, world units, and upsample; None = auto, from the label
-    map after morphology: its largest voxel spacing) -> medial axes -> sizing
+    map after morphology: its largest voxel spacing) -> medial axes (ma_side:
+    "inside", each material's inner axis, whose union is every interface's
+    medial axis; "both" adds the outer ones, slower; "outside") -> sizing
     field (eps, hmin default half the radius used) -> gradient limit (delta) -> junction seeds
     (decimate) -> multi-material particles (or a uniform `spacing`) ->
     labelled Delaunay tetrahedra -> `improve` rounds on the interfaces.
@@ -427,7 +428,7 @@ def mesh_materials(labels, *, merge: Optional[str] = None, min_voxels: int = 0, 
         raise ValueError(f"pad: {pad}; expected >= 0 voxels or \"auto\"")
     r = _run(_core.mesh_materials, progress, arr, o, s, d, merge or "", int(min_voxels), pad_n,
              "" if pad_value is None else str(pad_value),
-             morph_ops, int(downsample), radius, upsample, float(eps), float(delta), hmin, spacing,
+             morph_ops, int(downsample), radius, upsample, float(eps), float(delta), hmin, str(ma_side), spacing,
              int(decimate), int(improve), bool(tetrahedra), int(seed), int(threads))
     cd = r["cell_data"]
     pairs = np.stack([cd["label_a"], cd["label_b"]], axis=1) if len(r["triangles"]) else np.zeros((0, 2), np.int64)
