@@ -362,11 +362,14 @@ void SampleBins::build(const std::vector<Vec3>& x, double w, const std::vector<c
     hash_[h] = std::uint32_t(c + 1);
   }
   cell_nbr_.resize(nc * 27);
+  cell_lo_.resize(nc);
+  inv_ws_ = double(sub_) / w_;
   colour_start_.assign(kColours + 1, 0u);
   std::vector<std::int8_t> colour(nc, -1);
   for (std::size_t c = 0; c < nc; ++c) {
     const std::uint64_t k = cell_key_[c];
     const std::uint64_t ix = k % nx_, iy = (k / nx_) % ny_, iz = k / (nx_ * ny_);
+    cell_lo_[c] = Vec3(lo_.x + double(ix) * w_, lo_.y + double(iy) * w_, lo_.z + double(iz) * w_);
     int m = 0;
     for (int dz = -1; dz <= 1; ++dz)
       for (int dy = -1; dy <= 1; ++dy)
@@ -438,10 +441,8 @@ std::int32_t SampleBins::find(std::uint64_t key) const {
 }
 
 void SampleBins::axis_masks(std::size_t c, const Vec3& x, double slack, int m[3]) const {
-  const std::uint64_t key = cell_key_[c];
-  const std::uint64_t idx[3] = {key % nx_, (key / nx_) % ny_, key / (nx_ * ny_)};
   for (int a = 0; a < 3; ++a) {
-    const double c0 = lo_[a] + double(idx[a]) * w_, c1 = c0 + w_;
+    const double c0 = cell_lo_[c][a], c1 = c0 + w_;
     m[a] = (x[a] - slack < c0 ? 1 : 0) | 2 | (x[a] + slack >= c1 ? 4 : 0);
   }
 }

@@ -235,13 +235,26 @@ void ParticleEngine<C>::gather(const Vec3& x, double reach, std::size_t self, st
   int m[3];
   bins_.axis_masks(cell, x, pad, m);
   const Particle& P = parts_[self];
+  // Ranges that continue the previous one (sub-cell rows and bins that are
+  // adjacent in memory) are scanned as one run: the same indices in the
+  // same order, in fewer and longer scans.
+  std::uint32_t run_b = 0, run_e = 0;
+  auto scan_run = [&] {
+    if (run_b < run_e)
+      take_in_reach(run_e - run_b, [b = run_b](std::size_t j) { return std::uint32_t(b + j); }, x, r2, self, P, out);
+  };
   for (int k = 0; k < 27; ++k) {
     if (nb[k] < 0) continue;
     if (!((m[0] >> (k % 3)) & 1) || !((m[1] >> ((k / 3) % 3)) & 1) || !((m[2] >> (k / 9)) & 1)) continue;
     bins_.visit_box(std::size_t(nb[k]), x, pad, [&](std::uint32_t b, std::uint32_t e) {
-      take_in_reach(e - b, [b](std::size_t j) { return std::uint32_t(b + j); }, x, r2, self, P, out);
+      if (b != run_e) {
+        scan_run();
+        run_b = b;
+      }
+      run_e = e;
     });
   }
+  scan_run();
 }
 
 template <class C>

@@ -465,15 +465,14 @@ class SampleBins {
   /// within r of x, one range per sub-cell row, in a fixed order.
   template <class F>
   void visit_box(std::size_t c, const Vec3& x, double r, F&& f) const {
-    const std::uint64_t key = cell_key_[c];
-    const std::uint64_t idx[3] = {key % nx_, (key / nx_) % ny_, key / (nx_ * ny_)};
     const int S = sub_;
     int s0[3], s1[3];
     for (int a = 0; a < 3; ++a) {
-      // Sub-cell coordinates of the box, widened by a hair so that rounding
-      // never drops a point on a sub-cell face; the border cells are open.
-      const double c0 = lo_[a] + double(idx[a]) * w_, ws = w_ / S;
-      const double t0 = (x[a] - r - c0) / ws - 1e-9, t1 = (x[a] + r - c0) / ws + 1e-9;
+      // Sub-cell coordinates of the box, widened by a hair (far above the
+      // rounding of the product) so that rounding never drops a point on a
+      // sub-cell face; the border cells are open.
+      const double c0 = cell_lo_[c][a];
+      const double t0 = (x[a] - r - c0) * inv_ws_ - 1e-9, t1 = (x[a] + r - c0) * inv_ws_ + 1e-9;
       if (t1 < 0 || t0 >= S) return;
       s0[a] = t0 < 0 ? 0 : int(t0);
       s1[a] = t1 >= S - 1 ? S - 1 : int(t1);
@@ -492,13 +491,14 @@ class SampleBins {
   std::vector<std::uint64_t> keys_, keys_tmp_;
   std::vector<std::uint32_t> order_, order_tmp_, radix_count_;
   std::vector<std::uint64_t> cell_key_;
+  std::vector<Vec3> cell_lo_;  // per cell, its lower corner
   std::vector<std::uint32_t> cell_start_, sub_start_;
   std::vector<std::int32_t> cell_nbr_;
   std::vector<std::uint32_t> hash_;
   std::vector<std::uint32_t> colour_start_, colour_cells_;
   std::uint64_t nx_ = 0, ny_ = 0, nz_ = 0;
   Vec3 lo_;
-  double w_ = 1;
+  double w_ = 1, inv_ws_ = 1;  // bin width, sub-cells per world unit
   int sub_ = 1;
 };
 
