@@ -125,6 +125,48 @@ TEST(EngineBins, SubCellsVisitEveryPointWithinTheBox) {
   EXPECT_GT(fewer, total / 2);  // the sub-cells do prune
 }
 
+// Points on the sub-cell faces (a lattice of a third of the bin width, the
+// bin corner at a lattice point) and balls whose boxes end exactly on faces:
+// rounding in the sub-cell coordinates of a box never drops a point on its
+// face, and the ranges stay in increasing order (a gather's candidate order).
+TEST(EngineBins, SubCellsKeepPointsOnTheirFaces) {
+  std::vector<Vec3> x;
+  for (int k = 0; k < 13; ++k)
+    for (int j = 0; j < 13; ++j)
+      for (int i = 0; i < 13; ++i) x.push_back(Vec3{i / 3.0, j / 3.0, k / 3.0} + Vec3{0.1, -0.2, 0.3});
+  const std::vector<char> all;
+  SampleBins bins;
+  bins.build(x, 1.0, all, 3);
+  std::vector<Vec3> y(x.size());
+  for (std::size_t i = 0; i < x.size(); ++i) y[i] = x[bins.order()[i]];
+  std::size_t checked = 0;
+  for (std::size_t i = 0; i < y.size(); i += 7)
+    for (double r : {1 / 3.0, 2 / 3.0, 1.0}) {
+      std::int32_t block[27];
+      if (!bins.block_of(y[i], block)) continue;
+      std::vector<int> hits(y.size(), 0);
+      for (int k = 0; k < 27; ++k) {
+        if (block[k] < 0) continue;
+        std::uint32_t last = 0;
+        bins.visit_box(std::size_t(block[k]), y[i], r, [&](std::uint32_t b, std::uint32_t e) {
+          EXPECT_GE(b, last);
+          last = e;
+          for (std::uint32_t q = b; q < e; ++q) ++hits[q];
+        });
+      }
+      for (std::size_t q = 0; q < y.size(); ++q) {
+        const Vec3 d = y[q] - y[i];
+        // Within the box (up to the lattice's own rounding) and in the block.
+        if (std::fabs(d.x) <= r + 1e-12 && std::fabs(d.y) <= r + 1e-12 && std::fabs(d.z) <= r + 1e-12 &&
+            norm(d) <= r) {
+          EXPECT_EQ(hits[q], 1) << "point " << q << " at " << norm(d) << " of point " << i << ", r " << r;
+          ++checked;
+        }
+      }
+    }
+  EXPECT_GT(checked, 1000u);
+}
+
 // The quadratic step control on an exact parabola e(λ) = -gλ + cλ²
 // (g = 2, c = 1/2, minimum at λ = g/2c = 2): one trial, at any step, finds
 // the minimiser, and the next step is kStepOverRelax times it within the
