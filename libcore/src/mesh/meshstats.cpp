@@ -126,15 +126,20 @@ void measure_without_self_intersections(const Mesh& m, const MeshQualityParams& 
   }
   q.rr_mean = rr_sum / double(m.faces.size());
 
-  // Unique edges and valences.
-  std::unordered_set<std::uint64_t> edges;
-  edges.reserve(m.faces.size() * 2);
+  // Unique edges (in the order the faces first name them, so that the sums
+  // below do not depend on the standard library's hashing) and valences.
+  std::unordered_set<std::uint64_t> seen;
+  seen.reserve(m.faces.size() * 2);
+  std::vector<std::uint64_t> edges;
+  edges.reserve(m.faces.size() * 3 / 2 + 3);
   std::vector<int> valence(m.vertices.size(), 0);
   for (const auto& f : m.faces)
     for (int e = 0; e < 3; ++e) {
       int a = f[e], b = f[(e + 1) % 3];
       if (a > b) std::swap(a, b);
-      if (edges.insert((std::uint64_t(std::uint32_t(a)) << 32) | std::uint32_t(b)).second) {
+      const std::uint64_t key = (std::uint64_t(std::uint32_t(a)) << 32) | std::uint32_t(b);
+      if (seen.insert(key).second) {
+        edges.push_back(key);
         ++valence[a];
         ++valence[b];
       }
