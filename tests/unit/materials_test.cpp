@@ -144,6 +144,28 @@ TEST(Materials, Errors) {
     EXPECT_NE(std::string(e.what()).find("spacing.nrrd"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("same grid"), std::string::npos) << e.what();
   }
+  // The volumes are read side by side, but the error is the first one in the
+  // entries' order, whichever read finishes first: a missing file before a
+  // grid mismatch, a mismatch before a later missing file; and a malformed
+  // entry before any file is read.
+  auto message = [&](const std::string& spec) -> std::string {
+    try {
+      load_materials(spec);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  for (int round = 0; round < 5; ++round) {
+    const std::string m1 = message("1=" + a + ",2=" + dir + "/missing2.nrrd,3=" + dir + "/spacing.nrrd");
+    EXPECT_NE(m1.find("missing2.nrrd"), std::string::npos) << m1;
+    const std::string m2 = message("1=" + a + ",2=" + dir + "/origin.nrrd,3=" + dir + "/missing3.nrrd");
+    EXPECT_NE(m2.find("origin.nrrd"), std::string::npos) << m2;
+    EXPECT_EQ(m2.find("missing3"), std::string::npos) << m2;
+    const std::string m3 = message("1=" + a + ",2=" + dir + "/missing2.nrrd,3=" + dir + "/missing3.nrrd");
+    EXPECT_NE(m3.find("missing2.nrrd"), std::string::npos) << m3;
+  }
+  EXPECT_THROW(load_materials("1=" + dir + "/missing.nrrd,2" + b), UsageError);
   // Label maps: one label, non-integer values, too many labels.
   Volume one(VoxelType::u8, Dims{4, 4, 4});
   EXPECT_THROW(materials_from_labels(one), InputError);

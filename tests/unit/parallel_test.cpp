@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "pm/base/parallel.h"
@@ -50,6 +51,25 @@ TEST(ParallelFor, BodyExceptionReachesTheCaller) {
                                   if (r.begin() <= 42 && 42 < r.end()) throw std::invalid_argument("42");
                                 }),
                std::invalid_argument);
+}
+
+TEST(ParallelTasks, RunsEveryTaskAndRethrowsTheLowestFailure) {
+  for (int round = 0; round < 20; ++round) {
+    std::vector<std::atomic<int>> ran(64);
+    try {
+      pm::parallel_tasks(64, [&](std::size_t i) {
+        ran[i].fetch_add(1);
+        if (i == 41 || i == 17 || i == 63) throw std::runtime_error("task " + std::to_string(i));
+      });
+      ADD_FAILURE() << "no exception";
+    } catch (const std::runtime_error& e) {
+      EXPECT_STREQ(e.what(), "task 17");  // the one a loop in index order meets first
+    }
+    for (std::size_t i = 0; i < ran.size(); ++i) EXPECT_EQ(ran[i].load(), 1) << i;  // the others still ran
+  }
+  int calls = 0;
+  pm::parallel_tasks(0, [&](std::size_t) { ++calls; });
+  EXPECT_EQ(calls, 0);
 }
 
 }  // namespace

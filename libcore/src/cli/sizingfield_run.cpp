@@ -5,6 +5,7 @@
 
 #include "pm/base/error.h"
 #include "pm/base/log.h"
+#include "pm/base/parallel.h"
 #include "pm/base/stats.h"
 #include "pm/cli/run_tool.h"
 #include "pm/io/mesh.h"
@@ -61,16 +62,17 @@ void run_sizingfield(SizingFieldRun& cfg, const CommonFlags& flags) {
   if (sdfs.size() != mas.size())
     throw pm::UsageError("got " + std::to_string(sdfs.size()) + " --sdf and " + std::to_string(mas.size()) +
                          " --ma; expected one medial axis per distance volume");
-  std::vector<pm::Volume> volumes;
-  std::vector<std::vector<pm::Vec3>> axes;
-  for (std::size_t s = 0; s < sdfs.size(); ++s) {
-    volumes.push_back(pm::read_volume(sdfs[s]));
-    pm::require_distance_volume(volumes.back(), pm::quote(sdfs[s]));
-    axes.push_back(pm::read_mesh(mas[s]).vertices);
-    if (axes.back().empty())
+  // Read side by side; the error reported is the first a loop in order meets.
+  std::vector<pm::Volume> volumes(sdfs.size());
+  std::vector<std::vector<pm::Vec3>> axes(sdfs.size());
+  pm::parallel_tasks(sdfs.size(), [&](std::size_t s) {
+    volumes[s] = pm::read_volume(sdfs[s]);
+    pm::require_distance_volume(volumes[s], pm::quote(sdfs[s]));
+    axes[s] = pm::read_mesh(mas[s]).vertices;
+    if (axes[s].empty())
       throw pm::InputError(pm::quote(mas[s]) + ": no medial-axis points; expected the output of medialaxis for " +
                            pm::quote(sdfs[s]));
-  }
+  });
   std::vector<pm::SizingSurface> surfaces;
   for (std::size_t s = 0; s < sdfs.size(); ++s) surfaces.push_back({volumes[s], axes[s]});
   pm::SizingFieldResult r;

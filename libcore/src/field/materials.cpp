@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <exception>
+#include <memory>
 #include <limits>
 #include <map>
 #include <set>
@@ -38,17 +40,15 @@ int parse_label(const std::string& tok, const std::string& entry) {
   return int(v);
 }
 
-std::string describe_geometry(const Volume& v) {
+std::string describe_geometry(const Dims& d, const Geometry& g) {
   std::ostringstream s;
-  const Geometry& g = v.geometry();
-  s << v.dims().nx << "x" << v.dims().ny << "x" << v.dims().nz << " voxels, spacing " << g.spacing(0) << ","
+  s << d.nx << "x" << d.ny << "x" << d.nz << " voxels, spacing " << g.spacing(0) << ","
     << g.spacing(1) << "," << g.spacing(2) << ", origin " << g.origin.x << "," << g.origin.y << "," << g.origin.z;
   return s.str();
 }
 
-bool same_geometry(const Volume& a, const Volume& b) {
-  if (!(a.dims() == b.dims())) return false;
-  const Geometry &ga = a.geometry(), &gb = b.geometry();
+bool same_geometry(const Dims& da, const Geometry& ga, const Dims& db, const Geometry& gb) {
+  if (!(da == db)) return false;
   double scale = 0;
   for (int c = 0; c < 3; ++c) scale = std::max(scale, ga.spacing(c));
   const double tol = 1e-5 * scale;
@@ -283,40 +283,68 @@ MaterialSet load_materials(const std::string& spec_in, Kernel kernel) {
     }
     entries.push_back(trim(cur));
   }
-  MaterialSet ms;
-  std::vector<std::pair<std::string, Volume>> first;  // the first volume, for geometry checks
+  // The entries first (usage errors before any file is read), then the
+  // volumes read side by side, then checked in the entries' order: the error
+  // reported is the one a loop over the entries meets first.
+  struct Entry {
+    int label = 0;
+    std::string path;
+    bool positive = false;
+    Dims dims;
+    Geometry geometry;
+    std::unique_ptr<VolumeField> field;
+    std::exception_ptr read_error, field_error;
+  };
+  std::vector<Entry> list;
   std::set<int> seen;
   for (const std::string& e : entries) {
     const auto eq = e.find('=');
     if (e.empty() || eq == std::string::npos || eq + 1 >= e.size())
       throw UsageError("materials: entry \"" + e + "\" is malformed; expected \"LABEL=path\" or \"LABEL=+path\"");
-    const int label = parse_label(trim(e.substr(0, eq)), e);
-    std::string path = trim(e.substr(eq + 1));
-    bool positive = false;
-    if (!path.empty() && path[0] == '+') {
-      positive = true;
-      path = trim(path.substr(1));
+    Entry en;
+    en.label = parse_label(trim(e.substr(0, eq)), e);
+    en.path = trim(e.substr(eq + 1));
+    if (!en.path.empty() && en.path[0] == '+') {
+      en.positive = true;
+      en.path = trim(en.path.substr(1));
     }
-    if (path.empty())
+    if (en.path.empty())
       throw UsageError("materials: entry \"" + e + "\" has no path; expected \"LABEL=path\"");
-    if (!seen.insert(label).second)
-      throw InputError("materials: label " + std::to_string(label) + " is given twice (\"" + e +
+    if (!seen.insert(en.label).second)
+      throw InputError("materials: label " + std::to_string(en.label) + " is given twice (\"" + e +
                        "\"); expected each label once");
-    Volume v = read_volume(path);
-    require_finite(v, quote(path));
-    if (first.empty()) {
-      first.emplace_back(path, Volume(VoxelType::u8, v.dims(), v.geometry()));
-    } else if (!same_geometry(first[0].second, v)) {
-      throw InputError("materials: " + quote(path) + " (" + describe_geometry(v) + ") does not match " +
-                       quote(first[0].first) + " (" + describe_geometry(first[0].second) +
-                       "); expected every material volume on the same grid");
+    list.push_back(std::move(en));
+  }
+  pm::parallel_for(std::size_t(0), list.size(), [&](std::size_t i) {
+    Entry& en = list[i];
+    Volume v;
+    try {
+      v = read_volume(en.path);
+      require_finite(v, quote(en.path));
+      en.dims = v.dims();
+      en.geometry = v.geometry();
+    } catch (...) {
+      en.read_error = std::current_exception();
+      return;
     }
-    auto vf = std::make_unique<VolumeField>(v, kernel_params(kernel), path);
-    ms.labels.push_back(label);
-    if (positive)
-      ms.fields.push_back(std::make_shared<NegatedField>(std::shared_ptr<const ScalarField>(std::move(vf))));
-    else
-      ms.fields.push_back(std::shared_ptr<const ScalarField>(std::move(vf)));
+    try {
+      en.field = std::make_unique<VolumeField>(v, kernel_params(kernel), en.path);
+    } catch (...) {
+      en.field_error = std::current_exception();
+    }
+  });
+  MaterialSet ms;
+  for (Entry& en : list) {
+    if (en.read_error) std::rethrow_exception(en.read_error);
+    const Entry& first = list.front();
+    if (!same_geometry(first.dims, first.geometry, en.dims, en.geometry))
+      throw InputError("materials: " + quote(en.path) + " (" + describe_geometry(en.dims, en.geometry) +
+                       ") does not match " + quote(first.path) + " (" + describe_geometry(first.dims, first.geometry) +
+                       "); expected every material volume on the same grid");
+    if (en.field_error) std::rethrow_exception(en.field_error);
+    ms.labels.push_back(en.label);
+    std::shared_ptr<const ScalarField> f(std::move(en.field));
+    ms.fields.push_back(en.positive ? std::make_shared<NegatedField>(std::move(f)) : std::move(f));
   }
   if (ms.size() < 2)
     throw InputError("materials: \"" + spec + "\" names " + std::to_string(ms.size()) +

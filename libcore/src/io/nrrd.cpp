@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <mutex>
 #include <sstream>
 #include <utility>
 #include <vector>
@@ -21,6 +22,14 @@ namespace fs = std::filesystem;
 
 namespace pm {
 namespace {
+
+// Teem keeps its error messages in one global table (biff) that is not
+// thread-safe: calls into Teem take turns, so volumes can be read side by
+// side (pm::parallel_tasks) and each error still names its own file.
+std::recursive_mutex& teem_mutex() {
+  static std::recursive_mutex m;
+  return m;
+}
 
 // Teem's accumulated error text for NRRD, reduced to its innermost reason
 // (Teem lists the outermost call first), plus the header field being parsed
@@ -242,6 +251,7 @@ std::uintmax_t file_size_or_zero(const std::string& p) {
 }  // namespace
 
 Volume read_nrrd(const std::string& path) {
+  const std::lock_guard<std::recursive_mutex> teem(teem_mutex());
   const std::string who = "read_nrrd";
   const std::string where = who + ": " + quote(path);
   require_readable(path);
@@ -375,6 +385,7 @@ void set_data_file_name(NrrdIoState* nio, const std::string& name) {
 
 void write_nrrd_detached(const Volume& v, const std::string& header_path, const std::string& data_path,
                          const std::string& data_name, bool gzip) {
+  const std::lock_guard<std::recursive_mutex> teem(teem_mutex());
   const std::string where = "write_nrrd: " + quote(header_path);
   if (file_extension(header_path) != ".nhdr") throw Error(where + ": a detached header must end in .nhdr");
   if (fs::absolute(fs::path(data_path)).parent_path() != fs::absolute(fs::path(header_path)).parent_path())
@@ -401,6 +412,7 @@ void write_nrrd_detached(const Volume& v, const std::string& header_path, const 
 }
 
 void write_nrrd(const Volume& v, const std::string& path, bool gzip) {
+  const std::lock_guard<std::recursive_mutex> teem(teem_mutex());
   const std::string where = "write_nrrd: " + quote(path);
   if (v.empty()) throw InputError(where + ": the volume is empty");
   if (file_extension(path) == ".nhdr") {

@@ -11,6 +11,10 @@
 // loops are written to be deterministic for any partition of the range.
 #pragma once
 
+#include <cstddef>
+#include <exception>
+#include <vector>
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -85,6 +89,24 @@ void parallel_for(I first, I last, const Body& body) {
 #else
   tbb::parallel_for(first, last, body);
 #endif
+}
+
+/// Runs task(i) for every i in [0, n) side by side (independent tasks such as
+/// reading one file each). When tasks throw, the exception of the lowest i is
+/// rethrown after all have finished, so the error a user sees does not depend
+/// on the threads: the same one a loop in index order would have met first.
+template <class Task>
+void parallel_tasks(std::size_t n, const Task& task) {
+  std::vector<std::exception_ptr> errors(n);
+  pm::parallel_for(std::size_t(0), n, [&](std::size_t i) {
+    try {
+      task(i);
+    } catch (...) {
+      errors[i] = std::current_exception();
+    }
+  });
+  for (const std::exception_ptr& e : errors)
+    if (e) std::rethrow_exception(e);
 }
 
 }  // namespace pm
