@@ -12,6 +12,7 @@
 
 #include "pm/base/atomic_file.h"
 #include "pm/base/error.h"
+#include "pm/base/parallel.h"
 #include "delaunay_cgal.h"
 
 namespace pm {
@@ -166,25 +167,26 @@ TetLabelStats label_tets(TetMesh& tm, const LabelFunction& label, const TetLabel
   constexpr int kUnset = std::numeric_limits<int>::min();
   tm.labels.assign(nt, kUnset);
   std::vector<Vec3> centroid(nt);
-  for (std::size_t t = 0; t < nt; ++t) {
-    const Vec3& a = tm.points[tm.tets[t][0]];
-    const Vec3& b = tm.points[tm.tets[t][1]];
-    const Vec3& c = tm.points[tm.tets[t][2]];
-    const Vec3& d = tm.points[tm.tets[t][3]];
-    const Vec3 u = b - a, v = c - a, w = d - a;
-    const double vol6 = dot(u, cross(v, w));
-    const double lrms =
-        std::sqrt((norm2(u) + norm2(v) + norm2(w) + norm2(b - c) + norm2(b - d) + norm2(c - d)) / 6.0);
-    // Regular tetrahedron: V = l³/(6√2), so √2·(6V)/l³ = 1.
-    const double quality = std::sqrt(2.0) * vol6 / (lrms * lrms * lrms);
-    centroid[t] = a + (u + v + w) * 0.25;
-    if (quality >= p.flat_quality && vol6 > 0) {
-      const Vec3 cc = a + (norm2(u) * cross(v, w) + norm2(v) * cross(w, u) + norm2(w) * cross(u, v)) / (2.0 * vol6);
-      tm.labels[t] = label(cc);
-    } else {
-      ++st.flat;
+  // Every tetrahedron on its own (the label function is called side by side).
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, nt, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t t = r.begin(); t != r.end(); ++t) {
+      const Vec3& a = tm.points[tm.tets[t][0]];
+      const Vec3& b = tm.points[tm.tets[t][1]];
+      const Vec3& c = tm.points[tm.tets[t][2]];
+      const Vec3& d = tm.points[tm.tets[t][3]];
+      const Vec3 u = b - a, v = c - a, w = d - a;
+      const double vol6 = dot(u, cross(v, w));
+      const double lrms =
+          std::sqrt((norm2(u) + norm2(v) + norm2(w) + norm2(b - c) + norm2(b - d) + norm2(c - d)) / 6.0);
+      // Regular tetrahedron: V = l³/(6√2), so √2·(6V)/l³ = 1.
+      const double quality = std::sqrt(2.0) * vol6 / (lrms * lrms * lrms);
+      centroid[t] = a + (u + v + w) * 0.25;
+      if (quality >= p.flat_quality && vol6 > 0) {
+        const Vec3 cc = a + (norm2(u) * cross(v, w) + norm2(v) * cross(w, u) + norm2(w) * cross(u, v)) / (2.0 * vol6);
+        tm.labels[t] = label(cc);
+      }
     }
-  }
+  });
   // Flat tetrahedra come from (nearly) co-spherical points: in exact arithmetic
   // they share the circumsphere of the cluster they belong to, so they take
   // the label of their labelled face neighbours (majority; a tie, e.g. a lone
@@ -193,6 +195,7 @@ TetLabelStats label_tets(TetMesh& tm, const LabelFunction& label, const TetLabel
   std::vector<std::size_t> frontier, next;
   for (std::size_t t = 0; t < nt; ++t)
     if (tm.labels[t] == kUnset) frontier.push_back(t);
+  st.flat = frontier.size();
   while (!frontier.empty()) {
     next.clear();
     std::vector<std::pair<std::size_t, int>> decided;

@@ -67,6 +67,7 @@ struct TetLabelStats {
 };
 
 /// Label every tetrahedron by `label` at its circumcentre (centroid for flat ones).
+/// `label` is called from several threads at once (it must only read).
 TetLabelStats label_tets(TetMesh& tm, const LabelFunction& label, const TetLabelParams& p = {});
 
 /// The tetrahedra around every vertex, in ascending order (CSR: those of
