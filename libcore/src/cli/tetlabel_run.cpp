@@ -2,6 +2,7 @@
 
 #include "pm/base/error.h"
 #include "pm/base/log.h"
+#include "pm/base/parallel.h"
 #include "pm/base/stats.h"
 #include "pm/cli/conform_tets.h"
 #include "pm/cli/field_options.h"
@@ -65,22 +66,32 @@ void run_materials(pm::Mesh pts, const std::string& points, const pm::MaterialOp
   const pm::TetMesh& tm = r.tets;
   const pm::MeshTopology& it = r.interface_topology;
   const std::size_t buried = r.buried;
-  pm::write_mesh(mm.interfaces, out, {true, frame});
+  // The interfaces and each material's surface written (and the surfaces'
+  // topology measured) side by side; an error is the first in this order.
+  std::vector<std::pair<int, const pm::Mesh*>> each;
+  for (const auto& [l, m] : mm.surfaces) each.emplace_back(l, &m);
+  std::vector<pm::MeshTopology> topo(each.size());
+  pm::parallel_tasks(each.size() + 1, [&](std::size_t i) {
+    if (i == 0) {
+      pm::write_mesh(mm.interfaces, out, {true, frame});
+      return;
+    }
+    const auto& [l, m] = each[i - 1];
+    topo[i - 1] = pm::mesh_topology(*m);
+    if (!surfaces.empty()) pm::write_mesh(*m, surface_path(surfaces, l), {true, frame});
+  });
   pm::Json outputs = {out};
   pm::Json per = pm::Json::object();
-  for (const auto& [l, m] : mm.surfaces) {
-    const pm::MeshTopology t = pm::mesh_topology(m);
+  for (std::size_t i = 0; i < each.size(); ++i) {
+    const int l = each[i].first;
+    const pm::MeshTopology& t = topo[i];
     per[std::to_string(l)] = {{"tetrahedra", mm.tets_per_label.count(l) ? mm.tets_per_label.at(l) : 0},
                               {"vertices", t.vertices},
                               {"faces", t.faces},
                               {"components", t.components},
                               {"genus", t.genus},
                               {"closed_manifold", t.closed_manifold()}};
-    if (!surfaces.empty()) {
-      const std::string path = surface_path(surfaces, l);
-      pm::write_mesh(m, path, {true, frame});
-      outputs.push_back(path);
-    }
+    if (!surfaces.empty()) outputs.push_back(surface_path(surfaces, l));
   }
   if (!tets.empty()) {
     pm::write_tet_mesh(pm::labelled_tets(tm, mp.outside_label), tets, {frame});

@@ -10,6 +10,7 @@
 
 #include "pm/base/error.h"
 #include "pm/base/log.h"
+#include "pm/base/parallel.h"
 #include "pm/base/stats.h"
 #include "pm/field/distance.h"
 #include "pm/field/sizing.h"
@@ -344,9 +345,16 @@ MaterialStageResult mesh_materials_from_particles(Mesh pts, const MaterialSet& m
     ip.rounds = p.improve;
     ip.input_embedded = true;  // faces of the (relabelled) Delaunay tetrahedra: none cross
     res.improve = improve_interfaces(mm.interfaces, ms, ip);
-    for (auto& [l, m] : mm.surfaces) m = material_from_interfaces(mm.interfaces, l);
   }
-  for (auto& [l, m] : mm.surfaces) copy_point_scalars(pts, m);
+  // Each material's surface on its own, side by side.
+  std::vector<std::pair<const int, Mesh>*> surfaces;
+  for (auto& lm : mm.surfaces) surfaces.push_back(&lm);
+  const bool rebuild = p.improve > 0;
+  pm::parallel_tasks(surfaces.size(), [&](std::size_t i) {
+    auto& [l, m] = *surfaces[i];
+    if (rebuild) m = material_from_interfaces(mm.interfaces, l);
+    copy_point_scalars(pts, m);
+  });
   return res;
 }
 

@@ -6,6 +6,7 @@
 #include <set>
 
 #include "pm/base/error.h"
+#include "pm/base/parallel.h"
 
 namespace pm {
 
@@ -156,7 +157,21 @@ MaterialMeshes mesh_materials(TetMesh& tm, const MaterialSet& ms, const Material
     }
   }
   for (int l : tm.labels) ++out.tets_per_label[l];
-  out.interfaces = interface_mesh(tm, outside);
+  // The interface mesh and every material's surface (the outside's only for
+  // its check) read the labelled tetrahedra side by side.
+  const std::set<int> labels_present = present();
+  std::vector<int> surface_label(labels_present.begin(), labels_present.end());
+  surface_label.push_back(outside);
+  std::vector<Mesh> surface(surface_label.size());
+  std::vector<char> closed(surface_label.size(), 0);
+  pm::parallel_tasks(surface_label.size() + 1, [&](std::size_t i) {
+    if (i == surface_label.size()) {
+      out.interfaces = interface_mesh(tm, outside);
+      return;
+    }
+    surface[i] = material_surface(tm, surface_label[i], outside);
+    closed[i] = mesh_topology(surface[i]).closed_manifold();
+  });
   {
     const auto& a = out.interfaces.face_ints.at("label_a");
     const auto& b = out.interfaces.face_ints.at("label_b");
@@ -169,13 +184,10 @@ MaterialMeshes mesh_materials(TetMesh& tm, const MaterialSet& ms, const Material
                     out.pairs.begin());
     out.interfaces.face_ints["pair"] = std::move(pair);
   }
-  for (int l : present()) {
-    Mesh m = material_surface(tm, l, outside);
-    if (!mesh_topology(m).closed_manifold()) out.nonmanifold_materials.push_back(l);
-    out.surfaces.emplace(l, std::move(m));
+  for (std::size_t i = 0; i < surface_label.size(); ++i) {
+    if (!closed[i]) out.nonmanifold_materials.push_back(surface_label[i]);
+    if (i + 1 < surface_label.size()) out.surfaces.emplace(surface_label[i], std::move(surface[i]));
   }
-  if (!mesh_topology(material_surface(tm, outside, outside)).closed_manifold())
-    out.nonmanifold_materials.push_back(outside);
   return out;
 }
 
