@@ -54,6 +54,16 @@ expect_fail "multiparticles: error: .*(1 material|at least 2|fewer than 2|single
   --materials "$D/zeros.nrrd" --spacing 1 -o "$T/bad.ply"
 expect_fail "multiparticles: error: .*onevoxel.nrrd.*h = 0" \
   --materials "$D/wedges3.nrrd" --sizing "$D/onevoxel.nrrd" -o "$T/bad.ply"
+# A valid sizing field (h = 1) on a box that covers only a corner of the wedges (x, y, z <= 5):
+# most junction seeds lie outside it, where it used to give its smallest h without a word.
+python3 - "$T/corner_h.nrrd" <<'PY'
+import sys
+with open(sys.argv[1], "w") as f:
+    f.write("NRRD0004\ntype: float\ndimension: 3\nsizes: 6 6 6\nspacings: 1 1 1\nencoding: ascii\n\n")
+    f.write(" ".join(["1"] * 216) + "\n")
+PY
+expect_fail "multiparticles: error: sizing field .*corner_h.nrrd.* does not cover the junctions: [0-9]+ of [0-9]+ seeds lie outside its box" \
+  --materials "$D/wedges3.nrrd" --sizing "$T/corner_h.nrrd" -o "$T/bad.ply"
 printf 'ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nproperty float junction\nproperty float label_a\nproperty float label_b\nproperty float label_c\nproperty float label_d\nend_header\nnan 1 1 2 1 2 -1 -1\n' > "$T/nan.ply"
 expect_fail "multiparticles: error: .*nan.ply.*not finite" \
   --materials "$D/wedges3.nrrd" --seeds "$T/nan.ply" --spacing 2 -o "$T/bad.ply"

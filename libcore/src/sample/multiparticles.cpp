@@ -429,6 +429,17 @@ MultiParticleResult distribute_multi_particles(const MaterialSet& m, const std::
   if (dom.lo.x >= dom.hi.x || dom.lo.y >= dom.hi.y || dom.lo.z >= dom.hi.z)
     throw InputError("the materials' domains do not overlap (intersection " + engine_fmt(dom.lo) + " - " + engine_fmt(dom.hi) +
                      "); expected volumes covering the same box");
+  if (sizing) {  // like particles: a sizing field that misses the junctions is the wrong field
+    std::size_t nout = 0;
+    Vec3 example;
+    for (const JunctionSeed& sd : seeds)
+      if (is_finite(sd.x) && !sizing->covers(sd.x) && nout++ == 0) example = sd.x;
+    if (nout)
+      throw InputError("sizing field " + quote(sizing->name()) + " does not cover the junctions: " +
+                       std::to_string(nout) + " of " + std::to_string(seeds.size()) + " seeds lie outside its box " +
+                       engine_fmt(sizing->bounds().lo) + " - " + engine_fmt(sizing->bounds().hi) + ", e.g. at " +
+                       engine_fmt(example) + "; expected the sizing field of these materials, on their grid");
+  }
   if (!sizing && p.spacing > norm(dom.size()))
     throw UsageError("spacing " + engine_fmt(p.spacing) + " is larger than the domain's diagonal " + engine_fmt(norm(dom.size())));
   if (p.reproject_steps < 1)
