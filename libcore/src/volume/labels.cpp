@@ -266,23 +266,27 @@ Volume drop_small_labels(const Volume& v, std::size_t min_voxels, std::vector<st
   if (drop.empty()) return out;
   const Dims& d = v.dims();
   const std::size_t n = v.count();
-  std::vector<std::int64_t> lab(n);
   std::vector<std::uint8_t> open(n);
   std::vector<std::size_t> todo;
-  bool dropped_last = false;
   visit_voxel_type(v.type(), [&](auto tag) {
     using T = decltype(tag);
     const T* p = v.data<T>();
-    for (std::size_t c = 0; c < n; ++c) lab[c] = std::int64_t(static_cast<double>(p[c]));
+    bool dropped_last = false;
+    std::int64_t prev = 0;
+    for (std::size_t c = 0; c < n; ++c) {
+      const std::int64_t x = std::int64_t(static_cast<double>(p[c]));
+      if (c == 0 || x != prev) dropped_last = drop.count(x) > 0;  // one lookup per run
+      prev = x;
+      if (dropped_last) {
+        open[c] = 1;
+        todo.push_back(c);
+      }
+    }
     return 0;
   });
-  for (std::size_t c = 0; c < n; ++c) {
-    if (c == 0 || lab[c] != lab[c - 1]) dropped_last = drop.count(lab[c]) > 0;  // one lookup per run
-    if (dropped_last) {
-      open[c] = 1;
-      todo.push_back(c);
-    }
-  }
+  // A voxel's label, as it stands: the output holds every decision so far
+  // (no int64 copy of the whole map: 272 MB on the frog, for a few voxels).
+  auto lab = [&](std::size_t q) { return std::int64_t(out.get(q)); };
   // Grow the kept labels into the dropped voxels, one face layer at a time.
   while (!todo.empty()) {
     std::vector<std::pair<std::size_t, std::int64_t>> decided;
@@ -291,7 +295,7 @@ Volume drop_small_labels(const Volume& v, std::size_t min_voxels, std::vector<st
       const std::size_t i = c % d.nx, j = (c / d.nx) % d.ny, k = c / (d.nx * d.ny);
       std::map<std::int64_t, int> votes;
       auto vote = [&](std::size_t q) {
-        if (!open[q]) ++votes[lab[q]];
+        if (!open[q]) ++votes[lab(q)];
       };
       if (i > 0) vote(c - 1);
       if (i + 1 < d.nx) vote(c + 1);
@@ -313,7 +317,6 @@ Volume drop_small_labels(const Volume& v, std::size_t min_voxels, std::vector<st
       decided.emplace_back(c, best);
     }
     for (const auto& [c, l] : decided) {
-      lab[c] = l;
       open[c] = 0;
       out.set(c, double(l));
     }
