@@ -4,9 +4,9 @@
 #include <cmath>
 #include <cstdint>
 #include <exception>
-#include <memory>
 #include <limits>
 #include <map>
+#include <memory>
 #include <set>
 #include <sstream>
 
@@ -42,8 +42,8 @@ int parse_label(const std::string& tok, const std::string& entry) {
 
 std::string describe_geometry(const Dims& d, const Geometry& g) {
   std::ostringstream s;
-  s << d.nx << "x" << d.ny << "x" << d.nz << " voxels, spacing " << g.spacing(0) << ","
-    << g.spacing(1) << "," << g.spacing(2) << ", origin " << g.origin.x << "," << g.origin.y << "," << g.origin.z;
+  s << d.nx << "x" << d.ny << "x" << d.nz << " voxels, spacing " << g.spacing(0) << "," << g.spacing(1) << ","
+    << g.spacing(2) << ", origin " << g.origin.x << "," << g.origin.y << "," << g.origin.z;
   return s.str();
 }
 
@@ -308,8 +308,7 @@ MaterialSet load_materials(const std::string& spec_in, Kernel kernel) {
       en.positive = true;
       en.path = trim(en.path.substr(1));
     }
-    if (en.path.empty())
-      throw UsageError("materials: entry \"" + e + "\" has no path; expected \"LABEL=path\"");
+    if (en.path.empty()) throw UsageError("materials: entry \"" + e + "\" has no path; expected \"LABEL=path\"");
     if (!seen.insert(en.label).second)
       throw InputError("materials: label " + std::to_string(en.label) + " is given twice (\"" + e +
                        "\"); expected each label once");
