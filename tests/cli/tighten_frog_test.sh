@@ -61,6 +61,11 @@ for lab in ("0", "1"):
     # Measured 0.01-0.02 voxel; a tenth of a voxel is far below what the mesh resolves.
     if not dev.mean() < 0.1:
         bad.append(f"label {lab}: the zero set moves {dev.mean():.3f} voxel in the mean after the stop")
+# Re-distancing on the share of zero-set nodes whose |grad phi| is off (kReinitShare), not on
+# the worst one: 3-5% of the background's are off whatever the field (the surface bends on the
+# scale of a voxel), so the worst-node rule re-distanced it every cycle (6 times in 175 steps).
+if not short["0"]["reinits"] <= 2:
+    bad.append(f"label 0: {short['0']['reinits']} re-distancings (the share rule gives 1 or 2)")
 if cycle_stopped == 0:
     bad.append("neither label was stopped by the cycle rule (each ran to the cap or settled node by node)")
 if bad:

@@ -39,7 +39,7 @@ void add_tighten_options(CLI::App& app, TightenRun& cfg) {
                  "less than half of this in the mean over a --reinit cycle, voxels")
       ->capture_default_str();
   app.add_option("--reinit", cfg.params.reinit_every,
-                 "Every N flow steps, re-distance the flowing field if |grad phi| at the zero set is off 1 by > 0.5")
+                 "Every N flow steps, re-distance the flowing field if |grad phi| is off 1 by > 0.5 at more than 5% of the zero-set nodes")
       ->capture_default_str();
   app.add_flag("--positive-inside", cfg.params.positive_inside, "Write positive inside, negative outside (Chapter 6)");
   app.add_flag("--gzip", cfg.gzip,

@@ -293,17 +293,27 @@ inline bool next_to_zero_set(const Band& band, const std::vector<float>& v, std:
   return across;
 }
 
-// Re-distance when |grad phi| at the zero set leaves [1 - d, 1 + d] with d:
+// Re-distance when |grad phi| at too many zero-set nodes leaves [1 - d, 1 + d]
+// with d = kReinitDefect: when more than kReinitShare of them do. A node's
+// central differences straddle the zero set, and where the surface bends on
+// the scale of a voxel they are off by more than d whatever the field, so
+// some nodes always are; a re-distancing keeps the values next to the zero
+// set and cannot change theirs. Counting the share, not the worst node, keeps
+// a flow whose field stays distance-like from re-distancing every cycle for
+// them (frog5: 3-5% off after the first re-distancing and no better after
+// five more; the background label then re-distanced 6 times instead of once,
+// tighten 4.2 -> 3.0 s; interface rr means within 0.001, rr min 0.538 -> 0.504).
 constexpr double kReinitDefect = 0.5;
+constexpr double kReinitShare = 0.05;
 
-// Largest deviation of |grad phi| from 1 (central differences, world units)
-// over the active nodes next to the zero set (a face neighbour across it).
-double gradient_defect(const Band& band, const std::vector<float>& cur, const double h[3]) {
+// Share of the active nodes next to the zero set (a face neighbour across
+// it) whose |grad phi| (central differences, world units) is off 1 by more
+// than kReinitDefect; 0 when there are none.
+double gradient_defect_share(const Band& band, const std::vector<float>& cur, const double h[3]) {
   const std::size_t n = band.size();
   const std::size_t chunks = std::max<std::size_t>(1, n / 4096 + 1);
-  std::vector<double> worst(chunks, 0.0);
+  std::vector<std::size_t> zero(chunks, 0), off(chunks, 0);
   pm::parallel_for(std::size_t(0), chunks, [&](std::size_t ch) {
-    double w = 0;
     for (std::size_t t = n * ch / chunks, e = n * (ch + 1) / chunks; t < e; ++t) {
       if (!next_to_zero_set(band, cur, t)) continue;
       const float* r = cur.data() + band.active[t];
@@ -311,11 +321,16 @@ double gradient_defect(const Band& band, const std::vector<float>& cur, const do
       const double px = (double(r[o[0]]) - r[o[1]]) / (2 * h[0]);
       const double py = (double(r[o[2]]) - r[o[3]]) / (2 * h[1]);
       const double pz = (double(r[o[4]]) - r[o[5]]) / (2 * h[2]);
-      w = std::max(w, std::fabs(std::sqrt(px * px + py * py + pz * pz) - 1));
+      ++zero[ch];
+      off[ch] += std::fabs(std::sqrt(px * px + py * py + pz * pz) - 1) > kReinitDefect;
     }
-    worst[ch] = w;
   });
-  return *std::max_element(worst.begin(), worst.end());
+  std::size_t z = 0, b = 0;
+  for (std::size_t ch = 0; ch < chunks; ++ch) {
+    z += zero[ch];
+    b += off[ch];
+  }
+  return z > 0 ? double(b) / double(z) : 0.0;
 }
 
 // Mean change of the active nodes next to the zero set (a face neighbour
@@ -634,7 +649,7 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
     // distances keeps it close to one in most cases, and each re-distancing
     // costs a transform of the working box.
     if (it % p.reinit_every == 0 && res.last_change > 10 * p.tolerance &&
-        gradient_defect(band, phi, h) > kReinitDefect) {
+        gradient_defect_share(band, phi, h) > kReinitShare) {
       ++res.reinits;
       // Re-distance away from the zero set; nodes next to it keep their values
       // so the zero set does not move.
