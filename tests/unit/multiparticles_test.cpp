@@ -176,6 +176,46 @@ TEST(MultiParticles, JunctionRepairPutsMissedCurvesOnTheLine) {
   EXPECT_EQ(r.positions.size() + r.junction_repairs, plain.positions.size());
 }
 
+// Four materials meeting at a quadruple point (the origin) that has no seed:
+// the six triple curves are sampled up to it, and particles of two curves
+// that share two materials crowd there. The repair replaces such a pair by
+// one particle on the quadruple point (frog15 after tightening: two curve
+// particles 0.002 mm apart, four triangles of radius ratio 0.002).
+TEST(MultiParticles, RepairPutsAMissedQuadruplePointWhereCurvesMeet) {
+  const MaterialSet m = test::four_tetrahedral();
+  std::vector<JunctionSeed> seeds;
+  for (const JunctionSeed& j : junction_seeds_from_materials(m))
+    if (j.count < 4) seeds.push_back(j);
+  const double s = 0.2;
+  MultiParticleParams p = quiet(s);
+  p.repair_junctions = false;
+  const MultiParticleResult plain = distribute_multi_particles(m, seeds, nullptr, p);
+  p.repair_junctions = true;
+  const MultiParticleResult r = distribute_multi_particles(m, seeds, nullptr, p);
+  for (int j : plain.junction) EXPECT_LT(j, 4);
+  // Closest approach of particles of different triple curves.
+  auto closest_curves = [](const MultiParticleResult& q) {
+    double best = 1e300;
+    for (std::size_t a = 0; a < q.positions.size(); ++a)
+      for (std::size_t b = a + 1; b < q.positions.size(); ++b)
+        if (q.junction[a] == 3 && q.junction[b] == 3 && q.labels[a] != q.labels[b])
+          best = std::min(best, norm(q.positions[a] - q.positions[b]));
+    return best;
+  };
+  ASSERT_LT(closest_curves(plain), 0.25 * s);  // the situation the repair is for
+  EXPECT_EQ(plain.corner_repairs + plain.curve_pairs_dropped, 0u);
+  EXPECT_EQ(r.corner_repairs, 1u);
+  EXPECT_GE(closest_curves(r), 0.25 * s);
+  std::size_t corners = 0;
+  for (std::size_t i = 0; i < r.positions.size(); ++i)
+    if (r.junction[i] == 4) {
+      ++corners;
+      EXPECT_LT(norm(r.positions[i]), 1e-5);  // on the quadruple point
+    }
+  EXPECT_EQ(corners, 1u);
+  expect_on_junctions(m, r, 1e-6);
+}
+
 // A thin fin of material 1 (a 16 degree wedge along z) in background 0: the
 // interface folds at the fin's edge, where particles on its two faces have
 // normals 164 degrees apart and the normal weighting hides them from each

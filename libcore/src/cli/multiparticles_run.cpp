@@ -45,7 +45,8 @@ void record_stats(const pm::MultiParticleResult& r) {
   st["levels"] = levels;
   st["counts"] = {{"particles", r.positions.size()},
                   {"field_evaluations", r.field_evaluations},
-                  {"junction_repairs", r.junction_repairs}, {"close_pairs_merged", r.close_pairs_merged}};
+                  {"junction_repairs", r.junction_repairs}, {"close_pairs_merged", r.close_pairs_merged},
+                  {"corner_repairs", r.corner_repairs}, {"curve_pairs_dropped", r.curve_pairs_dropped}};
   st["engine"] = pm::engine_stats_json(r.engine);
   st["max_residual"] = r.max_residual;
 }

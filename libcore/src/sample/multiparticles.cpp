@@ -78,7 +78,7 @@ class MultiRun {
   void thin(std::vector<Seed>& seeds, double fraction) const;
   // Place seeds on their cells; returns the placed points of those that made it.
   std::vector<Point> place(Engine& e, const std::vector<Seed>& seeds, std::size_t& failed) const;
-  std::size_t repair_junctions(Engine& e, std::size_t& merged);
+  std::size_t repair_junctions(Engine& e, std::size_t& merged, std::size_t& corners, std::size_t& dropped);
 
   const MaterialSet& m_;
   const SizingField* sizing_;
@@ -129,14 +129,24 @@ std::vector<Point> MultiRun::place(Engine& e, const std::vector<Seed>& seeds, st
 // {a,b,c}, when the projection lands within half a spacing and no curve or
 // point particle is already there. Otherwise the Delaunay mesh gets a sliver
 // spanning the two interfaces. Sequential in bin order: deterministic.
-std::size_t MultiRun::repair_junctions(Engine& e, std::size_t& merged) {
-  merged = 0;
+//
+// Before that, the curves alike: two particles of different triple curves
+// that share two materials ({a,b,c}, {a,b,d}) closer than a quarter spacing
+// sit where the curves meet at a quadruple point that the point level did
+// not sample (frog15 after tightening: two curve particles 0.002 mm apart,
+// four triangles of radius ratio 0.002). The pair becomes one particle on
+// the quadruple junction {a,b,c,d} when the projection lands within half a
+// spacing and no point particle is already that close; otherwise the later
+// one of the pair is dropped (the curves pass within h/4 of each other
+// there, and one vertex serves both).
+std::size_t MultiRun::repair_junctions(Engine& e, std::size_t& merged, std::size_t& corners, std::size_t& dropped) {
+  merged = corners = dropped = 0;
   e.rebin();
   auto& parts = e.particles();
   const std::size_t n = parts.size();
   std::vector<char> gone(n, 0);
   std::vector<Point> added;
-  std::vector<char> on_junction;  // added[k] is a triple-junction particle (else a merged pair's)
+  std::vector<char> on_junction;  // added[k]: 2 a quadruple point, 1 a triple-junction particle, 0 a merged pair
   Probe pr;
   auto near_junction = [&](const Vec3& x, double r) {
     bool near = false;
@@ -144,6 +154,41 @@ std::size_t MultiRun::repair_junctions(Engine& e, std::size_t& merged) {
     for (std::size_t k = 0; k < added.size(); ++k) near = near || (on_junction[k] && norm2(added[k].x - x) < r * r);
     return near;
   };
+  for (std::size_t i = 0; i < n; ++i) {
+    if (gone[i] || c_.cell(parts[i].p).count != 3) continue;
+    const JunctionCell& ci = c_.cell(parts[i].p);
+    e.for_each_near(parts[i].p.x, kRepairDistance * parts[i].spacing, [&](std::size_t j) {
+      const auto& P = parts[i];
+      const auto& Q = parts[j];
+      if (gone[i] || j == i || gone[j] || c_.cell(Q.p).count != 3 || Q.p.s.cell == P.p.s.cell) return;
+      const double hmin = std::min(P.spacing, Q.spacing);
+      if (norm2(Q.p.x - P.p.x) >= kRepairDistance * kRepairDistance * hmin * hmin) return;
+      const JunctionCell& cj = c_.cell(Q.p);
+      std::vector<int> mats(ci.m.begin(), ci.m.begin() + 3);
+      for (int t = 0; t < 3; ++t)
+        if (!ci.contains(cj.m[std::size_t(t)])) mats.push_back(cj.m[std::size_t(t)]);
+      if (mats.size() != 4) return;  // not two curves of one quadruple point
+      const Vec3 mid = (P.p.x + Q.p.x) * 0.5;
+      Point q;
+      const std::int32_t cell = c_.cell_index(make_cell(mats));
+      bool near_point = false;
+      e.for_each_near(mid, kRepairClearance * hmin, [&](std::size_t o) {
+        near_point = near_point || (!gone[o] && c_.cell(parts[o].p).count == 4);
+      });
+      for (std::size_t k = 0; k < added.size(); ++k)
+        near_point = near_point || (on_junction[k] == 2 && norm2(added[k].x - mid) < kRepairClearance * kRepairClearance * hmin * hmin);
+      if (!near_point && c_.place(mid, c_.of_cell(cell), kPlaceSteps, hmin, q, pr) &&
+          (!sizing_ || sizing_->covers(q.x)) && norm2(q.x - mid) < kRepairLanding * kRepairLanding * hmin * hmin) {
+        added.push_back(q);
+        on_junction.push_back(2);
+        ++corners;
+        gone[i] = gone[j] = 1;
+        return;
+      }
+      gone[j] = 1;  // one vertex for both curves
+      ++dropped;
+    });
+  }
   for (std::size_t i = 0; i < n; ++i) {
     if (gone[i] || c_.cell(parts[i].p).count != 2) continue;
     const JunctionCell& ci = c_.cell(parts[i].p);
@@ -188,13 +233,13 @@ std::size_t MultiRun::repair_junctions(Engine& e, std::size_t& merged) {
     });
   }
   e.stats().field_evaluations += pr.evaluations;
-  if (added.empty()) return 0;
+  if (added.empty() && dropped == 0) return 0;
   std::size_t k = 0;
   for (std::size_t i = 0; i < n; ++i)
     if (!gone[i]) parts[k++] = parts[i];
   parts.resize(k);
   for (const Point& q : added) e.add(q, 0, true);
-  return added.size() - merged;
+  return added.size() - merged - corners;
 }
 
 MultiParticleResult MultiRun::run(const std::vector<JunctionSeed>& seeds) {
@@ -287,7 +332,8 @@ MultiParticleResult MultiRun::run(const std::vector<JunctionSeed>& seeds) {
                      " (do the materials touch? are the seeds from the same label map?)");
   }
 
-  if (p_.surfaces && p_.repair_junctions) res.junction_repairs = repair_junctions(e, res.close_pairs_merged);
+  if (p_.surfaces && p_.repair_junctions)
+    res.junction_repairs = repair_junctions(e, res.close_pairs_merged, res.corner_repairs, res.curve_pairs_dropped);
 
   // Output, level by level, in a deterministic order (level, then bin order).
   e.stable_order([&](const Engine::Particle& q) { return level_of(c_.cell(q.p)); });

@@ -124,6 +124,10 @@ struct MultiParticleResult {
   /// than h/4, replaced by one particle on their triple junction.
   std::size_t junction_repairs = 0;
   std::size_t close_pairs_merged = 0;  ///< same-interface pairs closer than h/4 merged into one (repair_junctions)
+  /// Pairs of particles of two triple curves sharing two materials, closer
+  /// than h/4, replaced by one particle on their quadruple junction ...
+  std::size_t corner_repairs = 0;
+  std::size_t curve_pairs_dropped = 0;  ///< ... or, where that projection fails, by the first of the two
 };
 
 /// Sample every junction of the material set.
