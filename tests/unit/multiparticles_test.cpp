@@ -30,6 +30,26 @@ MultiParticleParams quiet(double s) {
   return p;
 }
 
+// The run without and with the junction repair.
+std::pair<MultiParticleResult, MultiParticleResult> without_and_with_repair(const MaterialSet& m,
+                                                                            const std::vector<JunctionSeed>& seeds,
+                                                                            MultiParticleParams p) {
+  p.repair_junctions = false;
+  MultiParticleResult plain = distribute_multi_particles(m, seeds, nullptr, p);
+  p.repair_junctions = true;
+  return {std::move(plain), distribute_multi_particles(m, seeds, nullptr, p)};
+}
+
+// Closest approach of two particles of `junction` materials on different cells.
+double closest_of_different_cells(const MultiParticleResult& q, int junction) {
+  double best = 1e300;
+  for (std::size_t a = 0; a < q.positions.size(); ++a)
+    for (std::size_t b = a + 1; b < q.positions.size(); ++b)
+      if (q.junction[a] == junction && q.junction[b] == junction && q.labels[a] != q.labels[b])
+        best = std::min(best, norm(q.positions[a] - q.positions[b]));
+  return best;
+}
+
 // Checks every particle against the fields: on its junction (|f_a - f_b| <=
 // tol for its labels), no other material above, normals from a into b.
 void expect_on_junctions(const MaterialSet& m, const MultiParticleResult& r, double tol) {
@@ -146,25 +166,13 @@ TEST(MultiParticles, JunctionRepairPutsMissedCurvesOnTheLine) {
   for (const JunctionSeed& j : junction_seeds_from_materials(m))
     if (j.count == 2) seeds.push_back(j);
   const double s = 0.2;
-  MultiParticleParams p = quiet(s);
-  p.repair_junctions = false;
-  const MultiParticleResult plain = distribute_multi_particles(m, seeds, nullptr, p);
-  p.repair_junctions = true;
-  const MultiParticleResult r = distribute_multi_particles(m, seeds, nullptr, p);
+  const auto [plain, r] = without_and_with_repair(m, seeds, quiet(s));
   EXPECT_EQ(plain.junction_repairs, 0u);
   for (int j : plain.junction) EXPECT_EQ(j, 2);
-  // Closest approach of surface particles of different interfaces.
-  auto closest_pair = [](const MultiParticleResult& q) {
-    double best = 1e300;
-    for (std::size_t a = 0; a < q.positions.size(); ++a)
-      for (std::size_t b = a + 1; b < q.positions.size(); ++b)
-        if (q.junction[a] == 2 && q.junction[b] == 2 && q.labels[a] != q.labels[b])
-          best = std::min(best, norm(q.positions[a] - q.positions[b]));
-    return best;
-  };
-  ASSERT_LT(closest_pair(plain), 0.25 * s);  // the situation the repair is for
+  // Surface particles of different interfaces.
+  ASSERT_LT(closest_of_different_cells(plain, 2), 0.25 * s);  // the situation the repair is for
   EXPECT_GT(r.junction_repairs, 0u);
-  EXPECT_GE(closest_pair(r), 0.25 * s);      // every such pair was merged
+  EXPECT_GE(closest_of_different_cells(r, 2), 0.25 * s);      // every such pair was merged
   expect_on_junctions(m, r, 1e-6);
   std::size_t on_line = 0;
   for (std::size_t i = 0; i < r.positions.size(); ++i)
@@ -187,25 +195,13 @@ TEST(MultiParticles, RepairPutsAMissedQuadruplePointWhereCurvesMeet) {
   for (const JunctionSeed& j : junction_seeds_from_materials(m))
     if (j.count < 4) seeds.push_back(j);
   const double s = 0.2;
-  MultiParticleParams p = quiet(s);
-  p.repair_junctions = false;
-  const MultiParticleResult plain = distribute_multi_particles(m, seeds, nullptr, p);
-  p.repair_junctions = true;
-  const MultiParticleResult r = distribute_multi_particles(m, seeds, nullptr, p);
+  const auto [plain, r] = without_and_with_repair(m, seeds, quiet(s));
   for (int j : plain.junction) EXPECT_LT(j, 4);
-  // Closest approach of particles of different triple curves.
-  auto closest_curves = [](const MultiParticleResult& q) {
-    double best = 1e300;
-    for (std::size_t a = 0; a < q.positions.size(); ++a)
-      for (std::size_t b = a + 1; b < q.positions.size(); ++b)
-        if (q.junction[a] == 3 && q.junction[b] == 3 && q.labels[a] != q.labels[b])
-          best = std::min(best, norm(q.positions[a] - q.positions[b]));
-    return best;
-  };
-  ASSERT_LT(closest_curves(plain), 0.25 * s);  // the situation the repair is for
+  // Particles of different triple curves.
+  ASSERT_LT(closest_of_different_cells(plain, 3), 0.25 * s);  // the situation the repair is for
   EXPECT_EQ(plain.corner_repairs + plain.curve_pairs_dropped, 0u);
   EXPECT_EQ(r.corner_repairs, 1u);
-  EXPECT_GE(closest_curves(r), 0.25 * s);
+  EXPECT_GE(closest_of_different_cells(r, 3), 0.25 * s);
   std::size_t corners = 0;
   for (std::size_t i = 0; i < r.positions.size(); ++i)
     if (r.junction[i] == 4) {
@@ -236,11 +232,7 @@ TEST(MultiParticles, RepairMergesOneInterfacesPairsAcrossAFold) {
       test::cube(1.0));
   const std::vector<JunctionSeed> seeds = junction_seeds_from_materials(m);
   const double s = 0.1;
-  MultiParticleParams p = quiet(s);
-  p.repair_junctions = false;
-  const MultiParticleResult plain = distribute_multi_particles(m, seeds, nullptr, p);
-  p.repair_junctions = true;
-  const MultiParticleResult r = distribute_multi_particles(m, seeds, nullptr, p);
+  const auto [plain, r] = without_and_with_repair(m, seeds, quiet(s));
   auto closest_pair = [](const MultiParticleResult& q) {
     double best = 1e300;
     for (std::size_t a = 0; a < q.positions.size(); ++a)

@@ -154,84 +154,78 @@ std::size_t MultiRun::repair_junctions(Engine& e, std::size_t& merged, std::size
     for (std::size_t k = 0; k < added.size(); ++k) near = near || (on_junction[k] && norm2(added[k].x - x) < r * r);
     return near;
   };
-  for (std::size_t i = 0; i < n; ++i) {
-    if (gone[i] || c_.cell(parts[i].p).count != 3) continue;
-    const JunctionCell& ci = c_.cell(parts[i].p);
-    e.for_each_near(parts[i].p.x, kRepairDistance * parts[i].spacing, [&](std::size_t j) {
-      const auto& P = parts[i];
-      const auto& Q = parts[j];
-      if (gone[i] || j == i || gone[j] || c_.cell(Q.p).count != 3 || Q.p.s.cell == P.p.s.cell) return;
-      const double hmin = std::min(P.spacing, Q.spacing);
-      if (norm2(Q.p.x - P.p.x) >= kRepairDistance * kRepairDistance * hmin * hmin) return;
-      const JunctionCell& cj = c_.cell(Q.p);
-      std::vector<int> mats(ci.m.begin(), ci.m.begin() + 3);
-      for (int t = 0; t < 3; ++t)
-        if (!ci.contains(cj.m[std::size_t(t)])) mats.push_back(cj.m[std::size_t(t)]);
-      if (mats.size() != 4) return;  // not two curves of one quadruple point
-      const Vec3 mid = (P.p.x + Q.p.x) * 0.5;
-      Point q;
-      const std::int32_t cell = c_.cell_index(make_cell(mats));
-      bool near_point = false;
-      e.for_each_near(mid, kRepairClearance * hmin, [&](std::size_t o) {
-        near_point = near_point || (!gone[o] && c_.cell(parts[o].p).count == 4);
+  // Calls f(i, j, hmin) for the pairs of particles of `count` materials
+  // closer than kRepairDistance times the smaller spacing hmin, neither gone,
+  // i in bin order and j near it.
+  auto close_pairs = [&](int count, const auto& f) {
+    for (std::size_t i = 0; i < n; ++i) {
+      if (gone[i] || c_.cell(parts[i].p).count != count) continue;
+      e.for_each_near(parts[i].p.x, kRepairDistance * parts[i].spacing, [&](std::size_t j) {
+        if (gone[i] || j == i || gone[j] || c_.cell(parts[j].p).count != count) return;
+        const double hmin = std::min(parts[i].spacing, parts[j].spacing);
+        if (norm2(parts[j].p.x - parts[i].p.x) < kRepairDistance * kRepairDistance * hmin * hmin) f(i, j, hmin);
       });
-      for (std::size_t k = 0; k < added.size(); ++k)
-        near_point = near_point || (on_junction[k] == 2 && norm2(added[k].x - mid) < kRepairClearance * kRepairClearance * hmin * hmin);
-      if (!near_point && c_.place(mid, c_.of_cell(cell), kPlaceSteps, hmin, q, pr) &&
-          (!sizing_ || sizing_->covers(q.x)) && norm2(q.x - mid) < kRepairLanding * kRepairLanding * hmin * hmin) {
-        added.push_back(q);
-        on_junction.push_back(2);
-        ++corners;
-        gone[i] = gone[j] = 1;
-        return;
-      }
-      gone[j] = 1;  // one vertex for both curves
-      ++dropped;
-    });
-  }
-  for (std::size_t i = 0; i < n; ++i) {
-    if (gone[i] || c_.cell(parts[i].p).count != 2) continue;
+    }
+  };
+  // The cell of the materials of i's and j's cells together, if they make
+  // one of `count` materials (-1 otherwise).
+  auto joint_cell = [&](std::size_t i, std::size_t j, std::size_t count) {
     const JunctionCell& ci = c_.cell(parts[i].p);
-    e.for_each_near(parts[i].p.x, kRepairDistance * parts[i].spacing, [&](std::size_t j) {
-      const auto& P = parts[i];
-      const auto& Q = parts[j];
-      if (gone[i] || j == i || gone[j] || c_.cell(Q.p).count != 2) return;
-      const double hmin = std::min(P.spacing, Q.spacing);
-      if (norm2(Q.p.x - P.p.x) >= kRepairDistance * kRepairDistance * hmin * hmin) return;
-      if (Q.p.s.cell == P.p.s.cell) {
-        // One interface folding sharply between them (normals 90 degrees or
-        // more apart: the normal weighting hides them from each other): one
-        // particle at their middle, projected onto the interface.
-        const Vec3 mid = (P.p.x + Q.p.x) * 0.5;
-        Point q;
-        if (!c_.place(mid, P.p, kPlaceSteps, hmin, q, pr)) return;
-        if ((sizing_ && !sizing_->covers(q.x)) || norm2(q.x - mid) >= kRepairLanding * kRepairLanding * hmin * hmin)
-          return;
-        added.push_back(q);
-        on_junction.push_back(0);
-        ++merged;
-        gone[i] = gone[j] = 1;
-        return;
-      }
-      const JunctionCell& cj = c_.cell(Q.p);
-      std::vector<int> mats(ci.m.begin(), ci.m.begin() + 2);
-      for (int t = 0; t < 2; ++t)
-        if (!ci.contains(cj.m[std::size_t(t)])) mats.push_back(cj.m[std::size_t(t)]);
-      if (mats.size() != 3) return;  // disjoint pairs: not one triple junction
-      const Vec3 mid = (P.p.x + Q.p.x) * 0.5;
-      Point q;
-      const std::int32_t cell = c_.cell_index(make_cell(mats));
-      if (!c_.place(mid, c_.of_cell(cell), kPlaceSteps, hmin, q, pr)) return;
-      if (sizing_ && !sizing_->covers(q.x)) return;
-      const double h = spacing_at(q.x);
-      if (norm2(q.x - mid) >= kRepairLanding * kRepairLanding * hmin * hmin ||
-          near_junction(q.x, kRepairClearance * h))
-        return;
-      added.push_back(q);
-      on_junction.push_back(1);
-      gone[i] = gone[j] = 1;
+    const JunctionCell& cj = c_.cell(parts[j].p);
+    std::vector<int> mats(ci.m.begin(), ci.m.begin() + ci.count);
+    for (int t = 0; t < cj.count; ++t)
+      if (!ci.contains(cj.m[std::size_t(t)])) mats.push_back(cj.m[std::size_t(t)]);
+    return mats.size() == count ? c_.cell_index(make_cell(mats)) : std::int32_t(-1);
+  };
+  auto landed = [&](const Vec3& q, const Vec3& mid, double hmin) {
+    return (!sizing_ || sizing_->covers(q)) && norm2(q - mid) < kRepairLanding * kRepairLanding * hmin * hmin;
+  };
+  close_pairs(3, [&](std::size_t i, std::size_t j, double hmin) {
+    if (parts[j].p.s.cell == parts[i].p.s.cell) return;
+    const std::int32_t cell = joint_cell(i, j, 4);
+    if (cell < 0) return;  // not two curves of one quadruple point
+    const Vec3 mid = (parts[i].p.x + parts[j].p.x) * 0.5;
+    const double clear2 = kRepairClearance * kRepairClearance * hmin * hmin;
+    bool near_point = false;
+    e.for_each_near(mid, kRepairClearance * hmin, [&](std::size_t o) {
+      near_point = near_point || (!gone[o] && c_.cell(parts[o].p).count == 4);
     });
-  }
+    for (std::size_t k = 0; k < added.size(); ++k)
+      near_point = near_point || (on_junction[k] == 2 && norm2(added[k].x - mid) < clear2);
+    Point q;
+    if (!near_point && c_.place(mid, c_.of_cell(cell), kPlaceSteps, hmin, q, pr) && landed(q.x, mid, hmin)) {
+      added.push_back(q);
+      on_junction.push_back(2);
+      ++corners;
+      gone[i] = gone[j] = 1;
+      return;
+    }
+    gone[j] = 1;  // one vertex for both curves
+    ++dropped;
+  });
+  close_pairs(2, [&](std::size_t i, std::size_t j, double hmin) {
+    const Vec3 mid = (parts[i].p.x + parts[j].p.x) * 0.5;
+    Point q;
+    if (parts[j].p.s.cell == parts[i].p.s.cell) {
+      // One interface folding sharply between them (normals 90 degrees or
+      // more apart: the normal weighting hides them from each other): one
+      // particle at their middle, projected onto the interface.
+      if (!c_.place(mid, parts[i].p, kPlaceSteps, hmin, q, pr) || !landed(q.x, mid, hmin)) return;
+      added.push_back(q);
+      on_junction.push_back(0);
+      ++merged;
+      gone[i] = gone[j] = 1;
+      return;
+    }
+    const std::int32_t cell = joint_cell(i, j, 3);
+    if (cell < 0) return;  // disjoint pairs: not one triple junction
+    if (!c_.place(mid, c_.of_cell(cell), kPlaceSteps, hmin, q, pr) || !landed(q.x, mid, hmin) ||
+        near_junction(q.x, kRepairClearance * spacing_at(q.x)))
+      return;
+    added.push_back(q);
+    on_junction.push_back(1);
+    gone[i] = gone[j] = 1;
+  });
   e.stats().field_evaluations += pr.evaluations;
   if (added.empty() && dropped == 0) return 0;
   std::size_t k = 0;
