@@ -148,10 +148,12 @@ std::size_t MultiRun::repair_junctions(Engine& e, std::size_t& merged, std::size
   std::vector<Point> added;
   std::vector<char> on_junction;  // added[k]: 2 a quadruple point, 1 a triple-junction particle, 0 a merged pair
   Probe pr;
-  auto near_junction = [&](const Vec3& x, double r) {
+  // Whether a particle of `count` or more materials, given or added, lies within r of x.
+  auto near_junction = [&](const Vec3& x, double r, int count) {
     bool near = false;
-    e.for_each_near(x, r, [&](std::size_t q) { near = near || c_.cell(parts[q].p).count > 2; });
-    for (std::size_t k = 0; k < added.size(); ++k) near = near || (on_junction[k] && norm2(added[k].x - x) < r * r);
+    e.for_each_near(x, r, [&](std::size_t q) { near = near || c_.cell(parts[q].p).count >= count; });
+    for (std::size_t k = 0; k < added.size(); ++k)
+      near = near || (on_junction[k] >= count - 2 && norm2(added[k].x - x) < r * r);
     return near;
   };
   // Calls f(i, j, hmin) for the pairs of particles of `count` materials
@@ -185,15 +187,8 @@ std::size_t MultiRun::repair_junctions(Engine& e, std::size_t& merged, std::size
     const std::int32_t cell = joint_cell(i, j, 4);
     if (cell < 0) return;  // not two curves of one quadruple point
     const Vec3 mid = (parts[i].p.x + parts[j].p.x) * 0.5;
-    const double clear2 = kRepairClearance * kRepairClearance * hmin * hmin;
-    bool near_point = false;
-    e.for_each_near(mid, kRepairClearance * hmin, [&](std::size_t o) {
-      near_point = near_point || (!gone[o] && c_.cell(parts[o].p).count == 4);
-    });
-    for (std::size_t k = 0; k < added.size(); ++k)
-      near_point = near_point || (on_junction[k] == 2 && norm2(added[k].x - mid) < clear2);
     Point q;
-    if (!near_point && c_.place(mid, c_.of_cell(cell), kPlaceSteps, hmin, q, pr) && landed(q.x, mid, hmin)) {
+    if (!near_junction(mid, kRepairClearance * hmin, 4) && c_.place(mid, c_.of_cell(cell), kPlaceSteps, hmin, q, pr) && landed(q.x, mid, hmin)) {
       added.push_back(q);
       on_junction.push_back(2);
       ++corners;
@@ -220,7 +215,7 @@ std::size_t MultiRun::repair_junctions(Engine& e, std::size_t& merged, std::size
     const std::int32_t cell = joint_cell(i, j, 3);
     if (cell < 0) return;  // disjoint pairs: not one triple junction
     if (!c_.place(mid, c_.of_cell(cell), kPlaceSteps, hmin, q, pr) || !landed(q.x, mid, hmin) ||
-        near_junction(q.x, kRepairClearance * spacing_at(q.x)))
+        near_junction(q.x, kRepairClearance * spacing_at(q.x), 3))
       return;
     added.push_back(q);
     on_junction.push_back(1);
