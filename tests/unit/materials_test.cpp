@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <random>
@@ -94,6 +95,50 @@ TEST(Materials, BoundedArgmaxIsTheArgmax) {
         disagree_with_map += am.data<std::int32_t>()[am.index(i, j, k)] != int(grid.get(i, j, k));
       }
   EXPECT_EQ(disagree_with_map, 0u);  // at the nodes the argmax of the mask distances is the label map
+}
+
+// argmax_labels reads the samples where every field interpolates on the
+// grid's own nodes, and evaluates the fields at near-ties: the labels equal
+// label_at at every node. Values on a 0.5 lattice give many exact ties
+// (resolved as argmax does: the smallest index); a grid shifted by a third
+// of a voxel takes the general (bounded) path and also agrees.
+TEST(Materials, ArgmaxLabelsAtNodesIsTheArgmax) {
+  const Dims dims{13, 11, 9};
+  const Geometry geo = Geometry::with_spacing(0.7, 1.3, 0.9, Vec3(-3.1, 2.2, 5.0));
+  const std::string dir = test::temp_dir();
+  std::mt19937_64 rng(5);
+  std::uniform_int_distribution<int> q(-6, 6);
+  std::string spec;
+  for (int m = 0; m < 4; ++m) {
+    Volume v(VoxelType::f32, dims, geo);
+    for (std::size_t c = 0; c < v.count(); ++c) v.set(c, 0.5 * q(rng));
+    const std::string path = dir + "/m" + std::to_string(m) + ".nrrd";
+    write_volume(v, path);
+    spec += (m ? "," : "") + std::to_string(10 + m) + "=" + path;
+  }
+  const MaterialSet ms = load_materials(spec, KernelType::catmull_rom);
+  const Volume grid(VoxelType::u8, dims, geo);
+  const Volume am = argmax_labels(ms, grid);
+  std::size_t ties = 0;
+  double f[4];
+  for (std::size_t k = 0; k < dims.nz; ++k)
+    for (std::size_t j = 0; j < dims.ny; ++j)
+      for (std::size_t i = 0; i < dims.nx; ++i) {
+        const Vec3 x = geo.index_to_world(Vec3(double(i), double(j), double(k)));
+        ASSERT_EQ(am.data<std::int32_t>()[am.index(i, j, k)], ms.label_at(x)) << i << "," << j << "," << k;
+        ms.indicators(x, f);
+        const double best = *std::max_element(f, f + 4);
+        ties += std::count_if(f, f + 4, [&](double y) { return std::fabs(y - best) < 1e-6; }) > 1;
+      }
+  EXPECT_GT(ties, dims.count() / 10);  // the near-tie fallback was exercised
+  const Volume shifted(VoxelType::u8, dims,
+                       Geometry::with_spacing(0.7, 1.3, 0.9, Vec3(-3.1 + 0.7 / 3, 2.2, 5.0)));
+  const Volume as = argmax_labels(ms, shifted);
+  for (std::size_t k = 0; k < dims.nz; ++k)
+    for (std::size_t j = 0; j < dims.ny; ++j)
+      for (std::size_t i = 0; i < dims.nx; ++i)
+        ASSERT_EQ(as.data<std::int32_t>()[as.index(i, j, k)],
+                  ms.label_at(shifted.geometry().index_to_world(Vec3(double(i), double(j), double(k)))));
 }
 
 TEST(Materials, FromVolumesAndSigns) {

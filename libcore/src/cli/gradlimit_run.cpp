@@ -27,9 +27,10 @@ void add_gradlimit_options(CLI::App& app, GradLimitRun& cfg) {
                  "(Persson's explicit iteration; slow, for reference)")
       ->capture_default_str();
   app.add_option("--far-field", cfg.far_field,
-                 "flat: h stops growing at the largest input value (plus delta x 2 voxel diagonals), so every "
-                 "voxel below that, every input voxel among them, is as with grow, and the far field is not "
-                 "filled (about 3x faster around a surface); grow: h + delta x distance everywhere")
+                 "flat: h stops growing at the largest value an input voxel can get (limited among the input "
+                 "voxels alone; plus delta x 2 voxel diagonals), so every voxel below that, every input voxel "
+                 "among them, is as with grow, and the far field is not filled (several times faster around a "
+                 "surface; --stats parameters.cap); grow: h + delta x distance everywhere")
       ->check(CLI::IsMember({"flat", "grow"}))
       ->capture_default_str();
   app.add_flag("--nan-unknown", cfg.params.nonfinite_unknown,

@@ -104,12 +104,70 @@ std::size_t argmax_bounded(const MaterialSet& m, const MaterialBounds& b, const 
   return best;
 }
 
+namespace {
+
+// The materials' VolumeFields when every one interpolates (Catmull-Rom) on
+// exactly the grid's nodes, else empty: their value at a node is the node's
+// sample, up to the rounding of the world-to-index map.
+std::vector<const VolumeField*> node_samplers(const MaterialSet& m, const Volume& grid) {
+  std::vector<const VolumeField*> r;
+  const Geometry& g = grid.geometry();
+  for (const auto& f : m.fields) {
+    const auto* vf = dynamic_cast<const VolumeField*>(f.get());
+    if (!vf || vf->value_kernel() != KernelType::catmull_rom || !(vf->dims() == grid.dims()) ||
+        !(vf->geometry().origin == g.origin))
+      return {};
+    for (int a = 0; a < 3; ++a)
+      for (int c = 0; c < 3; ++c)
+        if (vf->geometry().directions.m[a][c] != g.directions.m[a][c]) return {};
+    r.push_back(vf);
+  }
+  return r;
+}
+
+// Where the best two indicators of a node differ by less than this
+// (relative to 1 + |best|), the node is decided by evaluating the fields
+// as argmax does, whose node values may differ from the samples by the
+// world-to-index rounding (about 1e-13 of the neighbours' differences).
+constexpr double kNodeTieMargin = 1e-9;
+
+}  // namespace
+
 Volume argmax_labels(const MaterialSet& m, const Volume& grid) {
-  const MaterialBounds b = material_bounds(m);
   Volume v(VoxelType::i32, grid.dims(), grid.geometry());
   std::int32_t* o = v.data<std::int32_t>();
   const Dims& d = grid.dims();
   const Geometry& g = grid.geometry();
+  // Interpolating fields on the grid itself: the argmax of the samples,
+  // with the fields evaluated only at near-ties (frog, 5 materials on 4.3M
+  // nodes: 0.75 -> 0.2 s; the value bounds of the general path are not
+  // needed). The same labels as label_at at each node.
+  const std::vector<const VolumeField*> nodes = node_samplers(m, grid);
+  if (!nodes.empty() && nodes.size() == m.size()) {
+    const std::size_t n = nodes.size();
+    pm::parallel_for(std::size_t(0), d.nz, [&](std::size_t k) {
+      for (std::size_t j = 0; j < d.ny; ++j)
+        for (std::size_t i = 0; i < d.nx; ++i) {
+          std::size_t best = 0;
+          double best_f = -std::numeric_limits<double>::infinity(), second = best_f;
+          for (std::size_t q = 0; q < n; ++q) {
+            const double f = -double(nodes[q]->node_sample(i, j, k));
+            if (f > best_f) {
+              second = best_f;
+              best_f = f;
+              best = q;
+            } else if (f > second) {
+              second = f;
+            }
+          }
+          if (!(best_f - second > kNodeTieMargin * (1 + std::fabs(best_f))))
+            best = m.argmax(g.index_to_world(Vec3(double(i), double(j), double(k))));
+          o[v.index(i, j, k)] = m.labels[best];
+        }
+    });
+    return v;
+  }
+  const MaterialBounds b = material_bounds(m);
   pm::parallel_for(std::size_t(0), d.nz, [&](std::size_t k) {
     for (std::size_t j = 0; j < d.ny; ++j)
       for (std::size_t i = 0; i < d.nx; ++i)

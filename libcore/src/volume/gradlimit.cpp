@@ -57,8 +57,12 @@ struct Grid {
 /// is processed again: an approximate increasing-value order from a bucket
 /// queue (width 2 delta * smallest spacing, each bucket in index order for
 /// memory locality) keeps that rare; the bucket width changes the run time,
-/// not the result's accuracy (measured).
-std::vector<double> propagate(const Grid& g, const std::vector<double>& h0, double delta, double ceiling) {
+/// not the result's accuracy (measured). With `known_only`, sources travel
+/// through known voxels only (h0 < inf), and unknown voxels stay unknown
+/// (+inf): an upper bound of the full result on every known voxel, at the
+/// cost of the known voxels alone.
+std::vector<double> propagate(const Grid& g, const std::vector<double>& h0, double delta, double ceiling,
+                              bool known_only = false) {
   const std::size_t n = h0.size();
   // 8 bytes per voxel so that neighbours cost as few cache misses as possible:
   // h as float (the output is float unless the input was double; relative
@@ -122,6 +126,7 @@ std::vector<double> propagate(const Grid& g, const std::vector<double>& h0, doub
               if (ii < 0 || ii >= nx || (di == 0 && dj == 0 && dk == 0)) continue;
               Cell& u = row[ii];
               if ((u.src & kIndex) == s) continue;  // already holds this source
+              if (known_only && !(h0[std::size_t(&u - c.data())] < kInf)) continue;
               // Compare as stored (float): a strict decrease of the stored
               // value on every update is what makes the loop terminate.
               const float cand = float(hs + delta * g.dist(ii - si, jj - sj, kk - sk));
@@ -256,7 +261,18 @@ GradLimitResult gradient_limit(const Volume& in, const GradLimitParams& p) {
                      "(h <= 0 marks unknown voxels)");
 
   double ceiling = p.ceiling;
-  if (p.flat_far_field) ceiling = std::min(ceiling, hmax + 2 * p.delta * g.dist(1, 1, 1));
+  if (p.flat_far_field) {
+    // The known voxels' limited values are at most what limiting among the
+    // known voxels alone gives (fewer paths): its largest value bounds them
+    // all, far below the largest h0 where a few known voxels sit high (frog,
+    // 5 materials: 9.0 against 73.4, and 1.4M of 4.3M voxels below the cap
+    // instead of nearly all).
+    const std::vector<double> hk = propagate(g, h0, p.delta, ceiling, true);
+    double kmax = 0;
+    for (std::size_t v = 0; v < hk.size(); ++v)
+      if (h0[v] < kInf) kmax = std::max(kmax, hk[v]);
+    ceiling = std::min(ceiling, std::min(hmax, kmax) + 2 * p.delta * g.dist(1, 1, 1));
+  }
   res.cap = ceiling;
   std::vector<double> h;
   if (p.method == GradLimitMethod::propagate) {

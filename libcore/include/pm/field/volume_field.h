@@ -75,6 +75,13 @@ class VolumeField : public ScalarField {
   std::shared_ptr<const ValueBounds> value_bounds(int block) const override;
   const Dims& dims() const { return dims_; }
   const Geometry& geometry() const { return geom_; }
+  /// The kernel of value() (Catmull-Rom interpolates: value() at a node is
+  /// that node's sample, up to the rounding of the world-to-index map).
+  KernelType value_kernel() const { return params_.value_kernel; }
+  /// The stored sample of node (i, j, k) (as float). \pre inside dims().
+  float node_sample(std::size_t i, std::size_t j, std::size_t k) const {
+    return data_[base_ + std::size_t(offset_[0][i + 3] + offset_[1][j + 3] + offset_[2][k + 3])];
+  }
   /// True when evaluation runs the AVX2 code path.
   bool uses_avx2() const { return avx2_; }
   /// True when a batch call with n points evaluates them in brick order

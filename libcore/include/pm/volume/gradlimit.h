@@ -52,12 +52,16 @@ struct GradLimitParams {
   /// little higher, still within the gradient bound (brain mask interior
   /// sizing: 1 of 16.7M voxels, by 3e-4 relative; 7.5 s -> 2 s).
   double ceiling = std::numeric_limits<double>::infinity();
-  /// Cap the result at the largest known value plus δ times two voxel
-  /// diagonals (and at `ceiling`): every voxel whose limited value lies below
-  /// that, every known voxel among them, gets the value it gets without a
+  /// Cap the result (and `ceiling`) at c = K + δ times two voxel diagonals,
+  /// K the largest value the known voxels get when limiting runs among the
+  /// known voxels alone (an upper bound of their final values: fewer paths;
+  /// at most the largest known value). Every voxel whose limited value lies
+  /// below c, every known voxel among them, gets the value it gets without a
   /// cap, and the far field stays flat instead of growing by δ per unit of
   /// distance, which saves filling the whole grid (a band around a surface
-  /// is a few percent of it). min(h, c) of a δ-Lipschitz h is δ-Lipschitz.
+  /// is a few percent of it; frog, 5 materials: K = 9.0 where the largest
+  /// known value is 73.4, and 1.4M of 4.3M voxels lie below c). min(h, c) of
+  /// a δ-Lipschitz h is δ-Lipschitz.
   bool flat_far_field = false;
 };
 
