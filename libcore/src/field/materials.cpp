@@ -108,7 +108,9 @@ namespace {
 
 // The materials' VolumeFields when every one interpolates (Catmull-Rom) on
 // exactly the grid's nodes, else empty: their value at a node is the node's
-// sample, up to the rounding of the world-to-index map.
+// sample, up to the rounding of the world-to-index map. Exact equality, not
+// same_geometry's tolerance: a grid off by 1e-5 voxel moves the node values
+// by far more than kNodeTieMargin.
 std::vector<const VolumeField*> node_samplers(const MaterialSet& m, const Volume& grid) {
   std::vector<const VolumeField*> r;
   const Geometry& g = grid.geometry();
@@ -143,7 +145,7 @@ Volume argmax_labels(const MaterialSet& m, const Volume& grid) {
   // nodes: 0.75 -> 0.2 s; the value bounds of the general path are not
   // needed). The same labels as label_at at each node.
   const std::vector<const VolumeField*> nodes = node_samplers(m, grid);
-  if (!nodes.empty() && nodes.size() == m.size()) {
+  if (!nodes.empty()) {
     const std::size_t n = nodes.size();
     pm::parallel_for(std::size_t(0), d.nz, [&](std::size_t k) {
       for (std::size_t j = 0; j < d.ny; ++j)

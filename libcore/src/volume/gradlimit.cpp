@@ -271,7 +271,7 @@ GradLimitResult gradient_limit(const Volume& in, const GradLimitParams& p) {
     double kmax = 0;
     for (std::size_t v = 0; v < hk.size(); ++v)
       if (h0[v] < kInf) kmax = std::max(kmax, hk[v]);
-    ceiling = std::min(ceiling, std::min(hmax, kmax) + 2 * p.delta * g.dist(1, 1, 1));
+    ceiling = std::min(ceiling, kmax + 2 * p.delta * g.dist(1, 1, 1));  // kmax <= hmax: limiting only lowers
   }
   res.cap = ceiling;
   std::vector<double> h;
