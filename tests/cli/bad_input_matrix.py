@@ -172,6 +172,8 @@ EXTRA = [
     ("gradlimit", "--far-field sideways", [SDF, o(".nrrd"), "--far-field", "sideways"], 2, "--far-field"),
     ("mcinit", "--decimate 0", [SDF, o(".ply"), "--iso", "0", "--decimate", "0"], 2, "--decimate"),
     ("tighten", "--radius 0", [MASK, o(".nrrd"), "-r", "0"], 2, "radius"),
+    ("tighten", "--outside-band -1", [MASK, o(".nrrd"), "-r", "0.5", "--outside-band", "-1"], 2, "outside-band"),
+    ("tighten", "--outside-band wide", [MASK, o(".nrrd"), "-r", "0.5", "--outside-band", "wide"], 2, "outside-band"),
     ("medialaxis", "--cos-alpha 2", [SDF, o(".ply"), "--cos-alpha", "2"], 2, "--cos-alpha"),
     ("sizingfield", "--eps 0", ["--sdf", SDF, "--ma", MA, "-o", o(".nrrd"), "--eps", "0"], 2, "--eps"),
     ("tetlabel", "--inside sideways", [SPHERE_PTS, "--implicit", "sphere", "-o", o(".ply"), "--inside", "sideways"], 2, "--inside"),

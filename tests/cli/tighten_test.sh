@@ -43,7 +43,19 @@ grep -q "not converged after 2 steps (last move [0-9.]* voxels); raise --iterati
   { echo "cap message:"; cat "$T/c.err"; exit 1; }
 if grep -q "()" "$T/c.err"; then echo "empty reason:"; cat "$T/c.err"; exit 1; fi
 
-# 4. A failed run leaves no output and no temporary file.
+# 4. --outside-band: the inside stays exact (the deepest value is the same),
+#    the outside far from the box is close, and the stats say which band ran.
+"$TI" "$D/box_mask.nrrd" "$T/ob.nrrd" --radius 0.5 --outside-band 0.5 --stats "$T/ob.json" -q
+"$VC" --info "$T/ob.nrrd" > "$T/obi.json"
+python3 - "$T/ai.json" "$T/obi.json" "$T/ob.json" <<'PY'
+import json, sys
+a, b, st = (json.load(open(f)) for f in sys.argv[1:4])
+assert b["min"] == a["min"], (a["min"], b["min"])          # inside: exact
+assert abs(b["max"] - a["max"]) <= 0.5, (a["max"], b["max"])  # far outside: within a voxel
+assert st["parameters"]["outside_band"] == 0.5, st["parameters"]
+PY
+
+# 5. A failed run leaves no output and no temporary file.
 mkdir "$T/fail"
 if "$TI" "$D/grey_ramp.nrrd" "$T/fail/out.nrrd" --radius 1 2>/dev/null; then echo "grey input accepted"; exit 1; fi
 if "$TI" "$D/box_mask.nrrd" "$T/fail/out.nrrd" --radius 0 2>/dev/null; then echo "radius 0 accepted"; exit 1; fi

@@ -134,6 +134,35 @@ TEST(Distance, NarrowBandMatchesInsideAndIsRoughOutside) {
   }
 }
 
+// The band limits only the outside: every inside node, however deep, keeps
+// the accurate value; outside, the band's nodes do, and the farther ones stay
+// correctly signed and within a voxel (as with the two-sided band).
+TEST(Distance, OutsideOnlyBandKeepsTheWholeInsideExact) {
+  const double R = 9.3;
+  const Geometry g = Geometry::with_spacing(1, 1, 1, Vec3(-16, -16, -16));
+  const Volume F = sample({33, 33, 33}, g, [&](const Vec3& x) { return norm(x) - R; });
+  const Volume full = signed_distance(F);
+  DistanceParams two, one;
+  two.band = one.band = 2.5;
+  one.band_outside_only = true;
+  const Volume nb = signed_distance(F, two), ob = signed_distance(F, one);
+  std::size_t deep_inside = 0, rough_two = 0, rough_one = 0;
+  for (std::size_t c = 0; c < F.count(); ++c) {
+    const double d = full.get(c);
+    if (d < 0 || d <= one.band) ASSERT_EQ(ob.get(c), d) << "node " << c;
+    ASSERT_EQ(ob.get(c) < 0, d < 0) << "node " << c;
+    ASSERT_NEAR(ob.get(c), d, 1.0) << "node " << c;
+    deep_inside += d < -one.band - 2;
+    rough_two += d < 0 && nb.get(c) != d;
+    rough_one += d > 0 && ob.get(c) != d;
+  }
+  // The test has teeth: the two-sided band does change deep inside nodes,
+  // and the one-sided one the far outside ones.
+  EXPECT_GT(deep_inside, 100u);
+  EXPECT_GT(rough_two, 0u);
+  EXPECT_GT(rough_one, 0u);
+}
+
 TEST(Distance, IsovalueAndSigns) {
   const Geometry g = Geometry::with_spacing(1, 1, 1);
   const Volume F = sample({12, 5, 5}, g, [](const Vec3& x) { return 10.0 * x.x; });

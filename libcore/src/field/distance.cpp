@@ -566,7 +566,7 @@ std::vector<float> signed_distance(const std::vector<float>& f, const Dims& dims
         const double x[3] = {double(i) * h[0], double(j) * h[1], double(k) * h[2]};
         const std::size_t s = std::size_t(site[c]);
         std::int32_t arg = band[s];
-        if (double(sq[c]) > far2) {  // beyond the accurate band: the nearest band node's disc
+        if (double(sq[c]) > far2 && !(p.band_outside_only && below(c))) {  // beyond the accurate band: the nearest band node's disc
           sq[c] = float(disc_d2(x, arg));
           site[c] = -1 - arg;
           continue;

@@ -379,6 +379,22 @@ std::string tighten_radius_note(const TightenResult& r) {
   return m.str();
 }
 
+namespace {
+
+// True when a node on the grid's faces lies outside (value > 0).
+bool outside_reaches_faces(const std::vector<float>& f, const Dims& d) {
+  for (std::size_t k = 0; k < d.nz; ++k)
+    for (std::size_t j = 0; j < d.ny; ++j) {
+      const bool face = k == 0 || k + 1 == d.nz || j == 0 || j + 1 == d.ny;
+      const std::size_t step = face ? 1 : std::max<std::size_t>(d.nx - 1, 1);
+      for (std::size_t i = 0; i < d.nx; i += step)
+        if (f[i + d.nx * (j + d.ny * k)] > 0) return true;
+    }
+  return false;
+}
+
+}  // namespace
+
 TightenResult tighten(const Volume& mask, const TightenParams& p) {
   if (!(p.radius > 0) || !std::isfinite(p.radius))
     throw UsageError("tighten: radius " + std::to_string(p.radius) + " is invalid; expected > 0 (world units)");
@@ -534,7 +550,12 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
                     full.begin() + long(wlo[0] + fd.nx * (jw + wlo[1] + fd.ny * (kw + wlo[2]))));
     });
     std::vector<float>().swap(box);
-    const std::vector<float> d = signed_distance(full, fd, gf, {});
+    DistanceParams q;
+    if (p.outside_band > 0 && outside_reaches_faces(full, fd)) {
+      q.band = p.outside_band;
+      q.band_outside_only = true;
+    }
+    const std::vector<float> d = signed_distance(full, fd, gf, q);
     res.distance = Volume(VoxelType::f32, fd, gf);
     float* out = res.distance.data<float>();
     const float sign = p.positive_inside ? -1.f : 1.f;

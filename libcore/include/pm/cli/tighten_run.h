@@ -18,6 +18,7 @@ struct TightenRun {
   bool per_label = false;
   std::string radius = "auto";
   std::string upsample = "auto";
+  std::string outside_band = "0";
   bool gzip = false;
 };
 

@@ -32,6 +32,9 @@ struct DistanceParams {
   /// within about a voxel (saves most of the time on large grids).
   /// 0 = accurate everywhere.
   double band = 0;
+  /// With band > 0: true = the band limits only the nodes outside (F >= iso);
+  /// every inside node gets the accurate value however deep.
+  bool band_outside_only = false;
 };
 
 /// Signed distance (float volume, world units, same dims and geometry) to the

@@ -53,6 +53,13 @@ struct TightenParams {
   /// many (a mask touching the border is then cut off there; tighten_labels
   /// pads the label map itself instead).
   int pad = -1;
+  /// > 0: outside the material the output distance is accurate only within
+  /// this distance of the surface (world units) and within about a voxel
+  /// farther out (the inside stays accurate everywhere); applied only when
+  /// the outside reaches the grid's faces, so that a bounded outside (e.g.
+  /// the background's, which is the union of the other materials) keeps its
+  /// exact depth. 0 = accurate everywhere.
+  double outside_band = 0;
 };
 
 struct TightenResult {
