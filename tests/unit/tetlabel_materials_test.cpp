@@ -2,12 +2,14 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <memory>
 #include <set>
 
 #include "pm/base/error.h"
 #include "pm/mesh/meshstats_materials.h"
+#include "pm/mesh/tet_quality.h"
 #include "pm/mesh/surface_improve.h"
 
 namespace pm {
@@ -221,6 +223,76 @@ TEST(TetLabelMaterials, InterfaceChecksFail) {
   plain.faces = {{0, 1, 2}};
   EXPECT_FALSE(is_interface_mesh(plain));
   EXPECT_THROW(interface_quality(plain), InputError);
+}
+
+
+// A tetrahedron abcd with its four face neighbours: neighbour k lies across
+// the face opposite corner k, its apex a unit above that face's centroid
+// (away from d's side), so the neighbours are well shaped.
+TetMesh tet_with_neighbours(const Vec3& d, const std::array<int, 4>& nb_labels, int own) {
+  TetMesh tm;
+  tm.points = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), d};
+  tm.tets.push_back({0, 1, 2, 3});
+  tm.neighbours.push_back({1, 2, 3, 4});
+  tm.labels.push_back(own);
+  const Vec3 centre = (tm.points[0] + tm.points[1] + tm.points[2] + tm.points[3]) * 0.25;
+  for (int k = 0; k < 4; ++k) {
+    std::array<int, 4> v{};
+    int m = 0;
+    for (int i = 0; i < 4; ++i)
+      if (i != k) v[std::size_t(m++)] = i;
+    const Vec3 &p = tm.points[std::size_t(v[0])], &q = tm.points[std::size_t(v[1])], &r = tm.points[std::size_t(v[2])];
+    Vec3 n = normalized(cross(q - p, r - p));
+    const Vec3 fc = (p + q + r) / 3.0;
+    if (dot(n, fc - centre) < 0) n = -n;
+    tm.points.push_back(fc + n);
+    v[3] = int(tm.points.size()) - 1;
+    tm.tets.push_back(v);
+    tm.neighbours.push_back({0, -1, -1, -1});
+    tm.labels.push_back(nb_labels[std::size_t(k)]);
+  }
+  return tm;
+}
+
+TEST(TetLabelMaterials, SliverSpikesTakeTheNeighboursLabel) {
+  const Vec3 flat(1, 1, 0.05), tall(0.3, 0.3, 0.9);
+  {
+    // The frog's case: a sliver of material 1 between 15 (two faces), 10 and 1.
+    TetMesh tm = tet_with_neighbours(flat, {15, 15, 10, 1}, 1);
+    ASSERT_LT(tet_dihedral_range(tm.points[0], tm.points[1], tm.points[2], tm.points[3]).min, 15.0);
+    EXPECT_EQ(relabel_sliver_spikes(tm, 0, 15), 1u);
+    EXPECT_EQ(tm.labels[0], 15);
+    const std::array<int, 4> around{15, 15, 10, 1};
+    for (int k = 1; k <= 4; ++k) EXPECT_EQ(tm.labels[std::size_t(k)], around[std::size_t(k - 1)]);
+  }
+  {
+    // A well-shaped tetrahedron keeps its label (its circumcentre is near).
+    TetMesh tm = tet_with_neighbours(tall, {15, 15, 10, 1}, 1);
+    ASSERT_GT(tet_dihedral_range(tm.points[0], tm.points[1], tm.points[2], tm.points[3]).min, 15.0);
+    EXPECT_EQ(relabel_sliver_spikes(tm, 0, 15), 0u);
+    EXPECT_EQ(tm.labels[0], 1);
+  }
+  {
+    // A sliver lying on an interface (two faces on each side) is no spike.
+    TetMesh tm = tet_with_neighbours(flat, {15, 1, 15, 1}, 1);
+    EXPECT_EQ(relabel_sliver_spikes(tm, 0, 15), 0u);
+    EXPECT_EQ(tm.labels[0], 1);
+  }
+  {
+    // No other label on two faces: nothing to join.
+    TetMesh tm = tet_with_neighbours(flat, {15, 10, 2, 1}, 1);
+    EXPECT_EQ(relabel_sliver_spikes(tm, 0, 15), 0u);
+  }
+  {
+    // Hull faces count as the outside label; a tie goes to the smaller label.
+    TetMesh tm = tet_with_neighbours(flat, {15, 15, 10, 10}, 1);
+    EXPECT_EQ(relabel_sliver_spikes(tm, 0, 15), 1u);
+    EXPECT_EQ(tm.labels[0], 10);
+    TetMesh hull = tet_with_neighbours(flat, {15, 15, 10, 1}, 1);
+    hull.neighbours[0] = {-1, -1, 3, 4};
+    EXPECT_EQ(relabel_sliver_spikes(hull, 7, 15), 1u);
+    EXPECT_EQ(hull.labels[0], 7);
+  }
 }
 
 }  // namespace

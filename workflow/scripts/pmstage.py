@@ -39,7 +39,7 @@ DEFAULTS = {
     "materials": {
         "MERGE": "", "MIN_VOXELS": "0", "PAD": "0", "PAD_VALUE": "new",
         "MORPH_OPS": "close:ball,open:ball", "DOWNSAMPLE": "1", "R": "1", "UPSAMPLE": "1",
-        "EPS": "0.5", "DELTA": "0.4", "HMIN": "", "SPACING": "", "DECIMATE": "2",
+        "EPS": "0.5", "DELTA": "0.4", "HMIN": "", "SPACING": "", "DECIMATE": "1",
         "SAMPLER": "multiparticles", "IMPROVE": "3", "MPFLAGS": "", "REQUIRE": "",
         "FLAGS": "-q", "MA_SIDE": "inside",
     },

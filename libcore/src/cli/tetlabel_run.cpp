@@ -109,6 +109,7 @@ void run_materials(pm::Mesh pts, const std::string& points, const pm::MaterialOp
                   {"tetrahedra", mm.label_stats.tets},
                   {"degenerate_tetrahedra", mm.label_stats.flat},
                   {"relabelled_for_manifold", mm.relabelled},
+                  {"sliver_spikes_relabelled", mm.spikes},
                   {"vertices", it.vertices},
                   {"faces", it.faces},
                   {"particles_not_on_interfaces", buried},

@@ -7,6 +7,7 @@
 
 #include "pm/base/error.h"
 #include "pm/base/parallel.h"
+#include "pm/mesh/tet_quality.h"
 
 namespace pm {
 
@@ -127,6 +128,45 @@ std::size_t fill_pinches(TetMesh& tm, int label, int outside) {
 
 }  // namespace
 
+std::size_t relabel_sliver_spikes(TetMesh& tm, int outside, double min_dihedral) {
+  const std::size_t nt = tm.tets.size();
+  std::vector<int> to(nt, 0);
+  std::vector<char> spike(nt, 0);
+  pm::parallel_for(std::size_t(0), nt, [&](std::size_t t) {
+    int lab[4];
+    for (int i = 0; i < 4; ++i) {
+      const int n = tm.neighbours[t][std::size_t(i)];
+      lab[i] = n >= 0 ? tm.labels[std::size_t(n)] : outside;
+    }
+    const int own = tm.labels[t];
+    int own_count = 0, best = own, best_count = 0;
+    for (int i = 0; i < 4; ++i) {
+      own_count += lab[i] == own;
+      if (lab[i] == own) continue;
+      int c = 0;
+      for (int j = 0; j < 4; ++j) c += lab[j] == lab[i];
+      if (c > best_count || (c == best_count && lab[i] < best)) {
+        best = lab[i];
+        best_count = c;
+      }
+    }
+    if (own_count > 1 || best_count < 2) return;
+    const auto& v = tm.tets[t];
+    const DihedralRange r = tet_dihedral_range(tm.points[std::size_t(v[0])], tm.points[std::size_t(v[1])],
+                                               tm.points[std::size_t(v[2])], tm.points[std::size_t(v[3])]);
+    if (!(r.min < min_dihedral)) return;
+    spike[t] = 1;
+    to[t] = best;
+  });
+  std::size_t changed = 0;
+  for (std::size_t t = 0; t < nt; ++t)
+    if (spike[t]) {
+      tm.labels[t] = to[t];
+      ++changed;
+    }
+  return changed;
+}
+
 MaterialMeshes mesh_materials(TetMesh& tm, const MaterialSet& ms, const MaterialMeshParams& p) {
   if (ms.size() == 0) throw Error("mesh_materials: empty material set");
   MaterialMeshes out;
@@ -136,6 +176,8 @@ MaterialMeshes mesh_materials(TetMesh& tm, const MaterialSet& ms, const Material
   out.label_stats = label_tets(
       tm, [&](const Vec3& x) { return dom.contains(x) ? ms.labels[argmax_bounded(ms, bounds, x)] : outside; },
       p.label);
+
+  if (p.spike_dihedral > 0) out.spikes = relabel_sliver_spikes(tm, outside, p.spike_dihedral);
 
   auto present = [&] {
     std::set<int> s(tm.labels.begin(), tm.labels.end());

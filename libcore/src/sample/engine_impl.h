@@ -813,7 +813,7 @@ bool ParticleEngine<C>::population_control(std::uint64_t tag, bool final_check, 
   std::vector<Candidate> kids;
   std::vector<double> steps;
   std::vector<std::uint64_t> parent;
-  std::size_t ndel = 0, nactive = 0;
+  std::size_t ndel = 0, nactive = 0, certain = 0;
   for (std::size_t i = 0; i < n; ++i) {
     const Particle& q = parts_[i];
     if (q.fixed) continue;
@@ -822,6 +822,7 @@ bool ParticleEngine<C>::population_control(std::uint64_t tag, bool final_check, 
     // similar energies do not all split or die together.
     const double ideal = ideal_energy(q);
     const double biased = q.energy * (1 + counter_uniform(p_.seed, q.id, tag, kStreamPopulation)) / 2;
+    certain += q.energy / 2 > c_.delete_above(q.p) * ideal || q.energy < c_.split_below(q.p) * ideal;
     if (biased > c_.delete_above(q.p) * ideal) {
       del[i] = 1;
       ++ndel;
@@ -835,7 +836,15 @@ bool ParticleEngine<C>::population_control(std::uint64_t tag, bool final_check, 
   }
   keep_anchor_covers(del, ndel);
   if (p_.keep_covered) keep_covered(del, ndel);
-  if (final_check && double(ndel + kids.size()) <= p_.population_tolerance * double(nactive)) return false;
+  if (final_check) {
+    const double tol = p_.population_tolerance * double(nactive);
+    if (double(ndel + kids.size()) <= tol) return false;
+    const double net = std::fabs(double(kids.size()) - double(ndel));
+    if (p_.population_balance && net <= tol && double(certain) <= tol) {
+      balanced_ = true;
+      return false;
+    }
+  }
   if (ndel == nactive && ndel) {  // never empty the system
     for (std::size_t i = 0; i < n; ++i)
       if (del[i]) {
@@ -1031,6 +1040,8 @@ typename ParticleEngine<C>::LevelResult ParticleEngine<C>::relax(const std::stri
   int interval = p_.first_population_interval > 0 ? std::min(p_.first_population_interval, p_.population_interval)
                                                   : p_.population_interval;
   for (Particle& q : parts_) q.quiet = 0;
+  balanced_ = false;
+  bool polishing = false;
   for (int it = 0; it < p_.max_iters; ++it) {
     Stopwatch sw;
     if (p_.alternate_types && iteration_ < std::uint64_t(std::max(0, p_.recolour_sweeps))) {
@@ -1059,7 +1070,7 @@ typename ParticleEngine<C>::LevelResult ParticleEngine<C>::relax(const std::stri
     ++iteration_;
     ++lr.iterations;
     ++since;
-    const bool conv = change <= p_.tolerance * e;
+    const bool conv = change <= p_.tolerance * (polishing ? kBalancePolish : 1.0) * e;
     if (p_.progress) {
       char detail[96];
       std::snprintf(detail, sizeof detail, "%zu particles, dE %.3g%%", parts_.size(),
@@ -1071,11 +1082,15 @@ typename ParticleEngine<C>::LevelResult ParticleEngine<C>::relax(const std::stri
       interval = std::min(2 * interval, p_.population_interval);
       Stopwatch sp;
       bool changed = false;
-      if (p_.alternate_types) {
+      if (polishing) {
+        // no population check while polishing
+      } else if (p_.alternate_types) {
         const std::size_t grown = grow_types(false);
         changed = retype() + grown > 0;
       }
-      if (fixed_count)
+      if (polishing) {
+        // as above
+      } else if (fixed_count)
         changed = adapt_spacing() || changed;
       else if (p_.population_control)
         changed = population_control(iteration_, conv, lr) || changed;
@@ -1083,6 +1098,10 @@ typename ParticleEngine<C>::LevelResult ParticleEngine<C>::relax(const std::stri
         for (Particle& q : parts_) q.quiet = 0;
       st_.seconds_population += sp.seconds();
       if (conv && !changed) {
+        if (balanced_ && !polishing) {  // population_balance: relax on to kBalancePolish x tolerance
+          polishing = true;
+          continue;
+        }
         if (guard_anchors_ && refills < kMaxRefills) {
           Stopwatch sr;
           const std::size_t added = refill_holes();

@@ -29,6 +29,14 @@ struct MaterialMeshParams {
   /// vertex join the most common other label there; a few rounds.
   bool repair = true;
   int repair_rounds = 4;
+  /// Sliver spikes: a tetrahedron whose smallest dihedral angle is below
+  /// this (degrees), whose own label is on at most one of its four face
+  /// neighbours and another label on at least two, takes that label (before
+  /// the repair). Such a sliver is a material sheet of no thickness between
+  /// two others, all four corners on interfaces, so it stays in every
+  /// conforming volume mesh (Chapter 7) whatever the interior points; its
+  /// label came from a circumcentre far from it. 0 = off.
+  double spike_dihedral = 15;
   TetLabelParams label;
 };
 
@@ -43,10 +51,18 @@ struct MaterialMeshes {
   std::map<int, std::size_t> tets_per_label;
   TetLabelStats label_stats;
   std::size_t relabelled = 0;  ///< tetrahedra changed by the manifold repair
+  std::size_t spikes = 0;      ///< sliver spikes relabelled (MaterialMeshParams::spike_dihedral)
   /// Materials whose surface (the outside label's included) is still not a
   /// closed manifold after the repair rounds.
   std::vector<int> nonmanifold_materials;
 };
+
+/// MaterialMeshParams::spike_dihedral on labelled tetrahedra: every sliver
+/// spike (smallest dihedral angle below min_dihedral degrees, its own label
+/// on at most one face neighbour, another label on at least two) takes that
+/// other label (ties: the smallest). Decided on the labels as given, then
+/// changed together; hull faces count as `outside`. Returns how many changed.
+std::size_t relabel_sliver_spikes(TetMesh& tm, int outside, double min_dihedral);
 
 /// Label `tm` by argmax of `ms` at the circumcentres (outside the domain:
 /// p.outside_label), repair, and extract the interface and material meshes.

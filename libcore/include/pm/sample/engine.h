@@ -173,6 +173,12 @@ constexpr int kFirstPopulationInterval = 8;
 /// Settled-particle skipping: when more than this share of the particles
 /// moved, nobody is settled and the wake-up scan is skipped.
 constexpr double kWakeScanShare = 0.25;
+/// EngineParams::population_balance: a level that ends on a stationary
+/// population relaxes on, without population checks, until the energy
+/// changes by less than this × tolerance per sweep (the tail of split/delete
+/// churn that it skips also relaxed; without the polish the five ch6 rr
+/// means lost 0.001-0.003, with it at most 0.0006).
+constexpr double kBalancePolish = 0.25;
 constexpr int kMaxTypes = 4;                 ///< particle types (pair scale table is kMaxTypes²)
 /// Fixed count: near the hexagonal packing E ∝ s^4.7 (cotangent), hence
 /// the exponent 1/5 of the spacing correction, clamped to [1/2, 2].
@@ -314,6 +320,17 @@ struct EngineParams {
   /// population_interval sweeps).
   int first_population_interval = 0;
   double population_tolerance = 0.001;
+  /// The final population check also ends the level when the population is
+  /// stationary: splits and deletions balance within population_tolerance
+  /// × N and at most as many particles lie outside the thresholds for every
+  /// draw of the random bias (E < split_below E_ideal, or E / 2 >
+  /// delete_above E_ideal). Near the junctions of a label map a few dozen
+  /// particles sit near the thresholds for good, and each check draws a
+  /// different few to split or delete; requiring fewer changes than the
+  /// tolerance then waits for a lucky draw (frog5 surfaces: 13-47 more
+  /// sweeps of that churn). The level then relaxes on to kBalancePolish ×
+  /// tolerance without population checks.
+  bool population_balance = false;
   bool population_control = true;
   std::uint64_t seed = 1;
   bool progress = true;
@@ -831,6 +848,7 @@ class ParticleEngine {
   bool lists_stale() const;
   double sweep(double& energy);
   bool population_control(std::uint64_t tag, bool final_check, LevelResult& lr);
+  bool balanced_ = false;  // the last final population check passed on balance (population_balance)
   bool adapt_spacing();
   void build_fine();
   std::int64_t anchor_cover(const Particle& a, const std::vector<char>* dead) const;
