@@ -55,13 +55,6 @@ void add_tighten_options(CLI::App& app, TightenRun& cfg) {
 }
 
 namespace {
-// --outside-band auto, in voxel diagonals of the output grid: medialaxis
-// --side inside reads the outside up to 3.5 diagonals from the surface, and
-// the band's accurate values reach a little less far than the band where the
-// closest-disc propagation would have come through nodes beyond it (at 4
-// diagonals a few frog nodes within 3.5 changed, by < 0.08 mm; at 6 none).
-constexpr double kOutsideBandDiagonals = 6.0;
-
 // The warning of a run that hit the step cap; the mean move of the zero set
 // only when a whole re-distancing cycle ran.
 std::string not_converged_note(const TightenResult& r, const TightenParams& p) {
@@ -127,12 +120,7 @@ void run_tighten(TightenRun& cfg, const CommonFlags& flags) {
   p.radius = d.radius;
   p.upsample = d.upsample;
   p.outside_band = band_given;
-  if (cfg.outside_band == "auto") {
-    const pm::Geometry& g = input.geometry();
-    const double k = double(p.upsample);
-    p.outside_band = kOutsideBandDiagonals * std::sqrt(g.spacing(0) * g.spacing(0) + g.spacing(1) * g.spacing(1) +
-                                                       g.spacing(2) * g.spacing(2)) / k;
-  }
+  if (cfg.outside_band == "auto") p.outside_band = pm::tighten_outside_band_auto(input.geometry(), p.upsample);
   if (radius == "auto" || upsample == "auto") {
     std::string why;
     if (radius == "auto") why = "radius from the header's largest spacing";

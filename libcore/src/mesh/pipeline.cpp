@@ -566,6 +566,8 @@ MaterialsPipelineResult mesh_materials_pipeline(const Volume& in, const Material
     TightenParams tp;
     tp.radius = td.radius;
     tp.upsample = td.upsample;
+    // TIGHTEN_BAND auto with MA_SIDE=inside, 0 (exact) otherwise.
+    if (p.ma_side == "inside") tp.outside_band = tighten_outside_band_auto(lv.geometry(), td.upsample);
     try {
       tighten_labels(lv, tp, [&](int label, TightenResult&& r) {
         if (r.radius < r.requested_radius)

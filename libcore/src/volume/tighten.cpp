@@ -379,6 +379,11 @@ std::string tighten_radius_note(const TightenResult& r) {
   return m.str();
 }
 
+double tighten_outside_band_auto(const Geometry& g, int upsample) {
+  const double d = std::sqrt(g.spacing(0) * g.spacing(0) + g.spacing(1) * g.spacing(1) + g.spacing(2) * g.spacing(2));
+  return kTightenOutsideBandDiagonals * d / double(std::max(upsample, 1));
+}
+
 namespace {
 
 // True when a node on the grid's faces lies outside (value > 0).

@@ -400,7 +400,7 @@ def mesh_materials(labels, *, merge: Optional[str] = None, min_voxels: int = 0, 
                    downsample: int = 1, radius: Optional[float] = None, upsample: Optional[int] = None,
                    eps: float = 0.3, delta: float = 0.05,
                    hmin: Optional[float] = None, ma_side: str = "inside", spacing: Optional[float] = None,
-                   decimate: int = 2, improve: int = 3, tetrahedra: bool = False, seed: int = 1, threads: int = 0,
+                   decimate: int = 1, improve: int = 3, tetrahedra: bool = False, seed: int = 1, threads: int = 0,
                    origin=None, voxel_spacing=None, directions=None, progress=None) -> MaterialMesh:
     """The Chapter 6 pipeline (`make -f Makefile.pipeline materials`) on a label map.
 

@@ -158,7 +158,7 @@ struct MaterialsPipelineParams {
                                      ///< radius on a tiny, upsampled volume)
   double spacing = 0;                ///< SPACING: uniform spacing (0 = the sizing field)
   std::string ma_side = "inside";    ///< MA_SIDE: "inside" (each material's inner medial axis), "outside" or "both"
-  int decimate = 2;                  ///< DECIMATE of the junction seeds
+  int decimate = 1;                  ///< DECIMATE of the junction seeds
   int improve = 3;                   ///< IMPROVE
   std::uint64_t seed = 1;
   bool progress = true;
