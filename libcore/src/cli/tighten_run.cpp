@@ -1,5 +1,7 @@
 #include "pm/cli/tighten_run.h"
 
+#include <type_traits>
+
 #include "pm/base/error.h"
 #include "pm/base/log.h"
 #include "pm/base/stats.h"
@@ -55,6 +57,21 @@ void add_tighten_options(CLI::App& app, TightenRun& cfg) {
 }
 
 namespace {
+// v from all of s (std::stod / std::stoi); false when s is not one number.
+template <class T>
+bool parse_whole(const std::string& s, T& v) {
+  std::size_t used = 0;
+  try {
+    if constexpr (std::is_integral_v<T>)
+      v = std::stoi(s, &used);
+    else
+      v = std::stod(s, &used);
+  } catch (const std::exception&) {
+    return false;
+  }
+  return used == s.size();
+}
+
 // The warning of a run that hit the step cap; the mean move of the zero set
 // only when a whole re-distancing cycle ran.
 std::string not_converged_note(const TightenResult& r, const TightenParams& p) {
@@ -79,39 +96,21 @@ void run_tighten(TightenRun& cfg, const CommonFlags& flags) {
   double r_given = 0;
   int k_given = 0;
   if (radius != "auto") {
-    std::size_t used = 0;
-    try {
-      r_given = std::stod(radius, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used != radius.size())
+    if (!parse_whole(radius, r_given))
       throw pm::UsageError("--radius " + radius + "; expected a number > 0 (world units) or auto");
     if (!(r_given > 0))
       throw pm::UsageError("tighten: radius " + std::to_string(r_given) +
                            " is invalid; expected > 0 (world units) or auto");
   }
   if (upsample != "auto") {
-    std::size_t used = 0;
-    try {
-      k_given = std::stoi(upsample, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used != upsample.size())
+    if (!parse_whole(upsample, k_given))
       throw pm::UsageError("--upsample " + upsample + "; expected an integer 1 to 8 or auto");
     if (k_given < 1 || k_given > 8)
       throw pm::UsageError("tighten: upsample " + std::to_string(k_given) + " is invalid; expected 1 to 8 or auto");
   }
   double band_given = 0;
   if (cfg.outside_band != "auto") {
-    std::size_t used = 0;
-    try {
-      band_given = std::stod(cfg.outside_band, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used != cfg.outside_band.size() || !(band_given >= 0) || !std::isfinite(band_given))
+    if (!parse_whole(cfg.outside_band, band_given) || !(band_given >= 0) || !std::isfinite(band_given))
       throw pm::UsageError("--outside-band " + cfg.outside_band + "; expected a number >= 0 (world units) or auto");
   }
   if (!pm::is_volume_path(out)) throw pm::UsageError("output " + pm::quote(out) + ": unknown volume extension");

@@ -822,11 +822,12 @@ bool ParticleEngine<C>::population_control(std::uint64_t tag, bool final_check, 
     // similar energies do not all split or die together.
     const double ideal = ideal_energy(q);
     const double biased = q.energy * (1 + counter_uniform(p_.seed, q.id, tag, kStreamPopulation)) / 2;
-    certain += q.energy / 2 > c_.delete_above(q.p) * ideal || q.energy < c_.split_below(q.p) * ideal;
-    if (biased > c_.delete_above(q.p) * ideal) {
+    const double delete_at = c_.delete_above(q.p) * ideal, split_at = c_.split_below(q.p) * ideal;
+    certain += q.energy / 2 > delete_at || q.energy < split_at;  // whatever the draw
+    if (biased > delete_at) {
       del[i] = 1;
       ++ndel;
-    } else if (biased < c_.split_below(q.p) * ideal) {
+    } else if (biased < split_at) {
       const double u = counter_uniform(p_.seed, q.id, tag, kStreamSplitDir);
       kids.push_back({q.p.x + c_.split_offset(q.p, u, kSplitOffset * q.spacing), q.p,
                       p_.alternate_types ? std::uint8_t(1 - q.type) : q.type});
@@ -1082,18 +1083,16 @@ typename ParticleEngine<C>::LevelResult ParticleEngine<C>::relax(const std::stri
       interval = std::min(2 * interval, p_.population_interval);
       Stopwatch sp;
       bool changed = false;
-      if (polishing) {
-        // no population check while polishing
-      } else if (p_.alternate_types) {
-        const std::size_t grown = grow_types(false);
-        changed = retype() + grown > 0;
+      if (!polishing) {  // no population checks while polishing
+        if (p_.alternate_types) {
+          const std::size_t grown = grow_types(false);
+          changed = retype() + grown > 0;
+        }
+        if (fixed_count)
+          changed = adapt_spacing() || changed;
+        else if (p_.population_control)
+          changed = population_control(iteration_, conv, lr) || changed;
       }
-      if (polishing) {
-        // as above
-      } else if (fixed_count)
-        changed = adapt_spacing() || changed;
-      else if (p_.population_control)
-        changed = population_control(iteration_, conv, lr) || changed;
       if (changed)
         for (Particle& q : parts_) q.quiet = 0;
       st_.seconds_population += sp.seconds();

@@ -567,17 +567,7 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
     for (std::size_t c = 0; c < d.size(); ++c) out[c] = sign * d[c];
   };
   const auto [dmin, dmax] = std::minmax_element(dS.begin(), dS.end());
-  bool outside_on_faces = false;
-  for (std::size_t k = 0; k < wd.nz && !outside_on_faces; ++k)
-    for (std::size_t j = 0; j < wd.ny && !outside_on_faces; ++j) {
-      const bool face = k == 0 || k + 1 == wd.nz || j == 0 || j + 1 == wd.ny;
-      const std::size_t step = face ? 1 : std::max<std::size_t>(wd.nx - 1, 1);
-      for (std::size_t i = 0; i < wd.nx; i += step)
-        if (dS[i + wd.nx * (j + wd.ny * k)] > 0) {
-          outside_on_faces = true;
-          break;
-        }
-    }
+  const bool outside_on_faces = outside_reaches_faces(dS, wd);
   const double depth = std::min(-double(*dmin), outside_on_faces ? HUGE_VAL : double(*dmax));
   if (!(r <= kTightenRoundDepth * depth)) {
     if (r / 2 >= kTightenMinRadiusVoxels * hmin) {
