@@ -18,12 +18,13 @@ test -f "$MICKEY" || { echo "missing $MICKEY" >&2; exit 1; }
 T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
 SMK=(snakemake -s "$SRC/workflow/Snakefile" --directory "$T" --cores 2 --keep-going)
 
-# a ball mask (radius 7 voxels, spacing 0.5) and a NRRD that promises 24^3 voxels but holds 100
+# a ball mask (radius 7 voxels; spacing 0.5 x 0.5 x 0.7, so that R auto, the largest spacing,
+# is not the smallest) and a NRRD that promises 24^3 voxels but holds 100
 $PY - "$T/ball.nrrd" "$T/truncated.nrrd" <<'PY'
 import math, sys
 n, c = 24, 11.5
 vals = bytes(1 if math.dist((i, j, k), (c, c, c)) <= 7 else 0 for k in range(n) for j in range(n) for i in range(n))
-head = f"NRRD0004\ntype: uint8\ndimension: 3\nsizes: {n} {n} {n}\nspacings: 0.5 0.5 0.5\nencoding: raw\n\n".encode()
+head = f"NRRD0004\ntype: uint8\ndimension: 3\nsizes: {n} {n} {n}\nspacings: 0.5 0.5 0.7\nencoding: raw\n\n".encode()
 open(sys.argv[1], "wb").write(head + vals)
 open(sys.argv[2], "wb").write(head + vals[:100])
 PY
@@ -85,7 +86,7 @@ for sid in ("mickey", "ear", "ball"):
     for stage in ("inspect", "tighten", "tetlabel", "meshstats", "render"):
         assert float(r[f"{stage}_seconds"]) > 0 and float(r[f"{stage}_peak_rss_mib"]) > 1, (sid, stage)
 assert rows["mickey"]["materials"] == "5", rows["mickey"]["materials"]
-# a ball of radius 3.5 (7 voxels of 0.5): one component of genus 0
+# a ball of radius 7 voxels (an ellipsoid in world units): one component of genus 0
 assert rows["ball"]["components"] == "1" and rows["ball"]["genus"] == "0", rows["ball"]
 # the per-scan override reached the tool: gradlimit ran with DELTA 0.1 on the ball, 0.05 on the ear
 for sid, delta in (("ball", "0.1"), ("ear", "0.05")):
@@ -103,6 +104,19 @@ assert page.count("src='data:image/png;base64,") == 3, page.count("data:image/pn
 assert "Failed scans" in page and "volconv: error: " in page and "truncated.nrrd" in page
 print("report:", {k: (v["status"], v["vertices"], v["rr_mean"], v["seconds"], v["peak_rss_mib"]) for k, v in rows.items()})
 PY
+
+# --- the same commands and defaults as the makefiles: the same points and meshes, byte for byte -
+for scan in "mickey materials $MICKEY" "ear surface $MICKEY LABELS=3" "ball surface $T/ball.nrrd DELTA=0.1"; do
+  set -- $scan
+  make -s -j2 -f "$SRC/Makefile.pipeline" "$2" INPUT="$3" ${4:+"$4"} OUT="$T/make_$1" BIN="$BIN" THREADS=2 QUIET=1 \
+    2> "$T/make_$1.err" || { echo "make $2 of $1 failed" >&2; cat "$T/make_$1.err" >&2; exit 1; }
+  if [ "$2" = materials ]; then pairs="multiparticles/points.ply:points.ply tetlabel/interfaces.ply:interfaces.ply"
+  else pairs="particles/points.ply:points.ply tetlabel/surface.ply:surface.ply"; fi
+  for p in $pairs; do
+    cmp "$T/res/$1/work/${p%%:*}" "$T/make_$1/${p##*:}" ||
+      { echo "$1: the cohort's ${p%%:*} differs from make $2's ${p##*:}" >&2; exit 1; }
+  done
+done
 
 # --- a rerun does nothing ----------------------------------------------------------------
 before=$(stat -c %Y "$T/res/report.csv" "$T/res/ball/work/particles/points.ply")

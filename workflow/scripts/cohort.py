@@ -27,7 +27,9 @@ REQUIRED = ("id", "input", "pipeline")
 ID_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 # variables whose value must be a number (the others are strings: label lists, ops, flags)
 NUMERIC = {"ISO", "R", "EPS", "DELTA", "SPACING", "UPSAMPLE", "PTOL", "IMPROVE", "DECIMATE", "HMIN",
-           "MIN_COMPONENT", "MIN_VOXELS", "PAD", "DOWNSAMPLE"}
+           "MIN_COMPONENT", "MIN_VOXELS", "PAD", "DOWNSAMPLE", "TIGHTEN_BAND"}
+# ... of which these may also be "auto", as in the makefiles
+AUTO = {"R", "UPSAMPLE", "HMIN", "PAD", "TIGHTEN_BAND"}
 
 
 class SheetError(Exception):
@@ -98,11 +100,11 @@ def read_sheet(path):
             if k not in DEFAULTS[pipe]:
                 raise SheetError(f'{at}: {k}={val}: {k} is not a variable of the {pipe} pipeline; expected one of '
                                  f"{', '.join(DEFAULTS[pipe])}")
-            if k in NUMERIC:
+            if k in NUMERIC and not (k in AUTO and val == "auto"):
                 try:
                     float(val)
                 except ValueError:
-                    raise SheetError(f'{at}: {k}="{val}": expected a number')
+                    raise SheetError(f'{at}: {k}="{val}": expected a number' + (" or auto" if k in AUTO else ""))
             overrides[k] = val
         scans.append({"id": sid, "input": os.path.normpath(full), "pipeline": pipe, "vars": overrides, "row": n})
     if not scans:

@@ -31,17 +31,17 @@ import time
 # cohort sheet may override per scan, with the makefiles' defaults ("" = unset).
 DEFAULTS = {
     "surface": {
-        "ISO": "", "LABELS": "", "STENCIL": "ball", "MIN_COMPONENT": "", "R": "",
-        "EPS": "0.5", "DELTA": "0.05", "SPACING": "", "UPSAMPLE": "1", "MORPH": "",
+        "ISO": "", "LABELS": "", "STENCIL": "ball", "MIN_COMPONENT": "", "R": "auto",
+        "EPS": "0.5", "DELTA": "0.05", "SPACING": "", "UPSAMPLE": "auto", "MORPH": "",
         "TIGHTEN": "", "REQUIRE": "", "FLAGS": "-q", "PTOL": "1e-4", "PFLAGS": "",
         "IMPROVE": "3", "DECIMATE": "4", "HMIN": "",
     },
     "materials": {
-        "MERGE": "", "MIN_VOXELS": "0", "PAD": "0", "PAD_VALUE": "new",
-        "MORPH_OPS": "close:ball,open:ball", "DOWNSAMPLE": "1", "R": "1", "UPSAMPLE": "1",
-        "EPS": "0.5", "DELTA": "0.4", "HMIN": "", "SPACING": "", "DECIMATE": "1",
+        "MERGE": "", "MIN_VOXELS": "0", "PAD": "auto", "PAD_VALUE": "",
+        "MORPH_OPS": "close:ball,open:ball", "DOWNSAMPLE": "1", "R": "auto", "UPSAMPLE": "auto",
+        "TIGHTEN_BAND": "", "EPS": "0.3", "DELTA": "0.05", "HMIN": "auto", "SPACING": "", "DECIMATE": "1",
         "SAMPLER": "multiparticles", "IMPROVE": "3", "MPFLAGS": "", "REQUIRE": "",
-        "FLAGS": "-q", "MA_SIDE": "inside",
+        "FLAGS": "-q", "MA_SIDE": "inside", "KERNEL": "catmull-rom",
     },
 }
 
@@ -183,7 +183,6 @@ class Stage:
         use_mask = kind == "mask" or bool(v["MORPH"]) or bool(v["TIGHTEN"])
         p = {
             "kind": kind, "use_mask": use_mask,
-            "radius": float(v["R"]) if v["R"] else minspacing,
             "hmin": float(v["HMIN"]) if v["HMIN"] else minspacing / 2,
             "field": self.path("tighten", "sdf.nrrd") if use_mask else self.input,
             "field_iso": "0" if use_mask else v["ISO"],
@@ -221,7 +220,7 @@ class Stage:
         p, v = self.params(), self.v
         if p["use_mask"]:
             self.run([self.tool("tighten"), self.path("morph", "morph.nrrd"), self.out("sdf.nrrd"),
-                      "--radius", repr(p["radius"]), "--upsample", v["UPSAMPLE"]] + self.flags
+                      "--radius", v["R"], "--upsample", v["UPSAMPLE"]] + self.flags
                      + self.threads_args() + ["--stats", self.out("tighten.json")])
         else:  # Makefile.pipeline's grey_sdf.nrrd: the isosurface's signed distance
             self.run([self.tool("volconv"), self.input, self.out("sdf.nrrd"), "--distance", v["ISO"]]
@@ -304,7 +303,6 @@ class Stage:
         if v["SAMPLER"] not in ("multiparticles", "stand-in"):
             self.fail(f"inspect: error: SAMPLER={v['SAMPLER']}: expected multiparticles or stand-in")
         write_json(self.out("params.json"), {
-            "hmin": v["HMIN"] or v["R"],
             "sizing": "" if v["SPACING"] else self.path("gradlimit", "h.nrrd")})
 
     def materials_labels(self):
@@ -314,8 +312,11 @@ class Stage:
             args += ["--merge", v["MERGE"]]
         if v["MIN_VOXELS"] != "0":
             args += ["--min-voxels", v["MIN_VOXELS"]]
-        if v["PAD"] != "0":
-            args += ["--pad", v["PAD"], "--pad-value", v["PAD_VALUE"]]
+        # PAD auto: 3 voxels (times DOWNSAMPLE) where the border holds more than one label, of the
+        # label holding most of the border (PAD_VALUE auto); a given PAD: a new label by default
+        pad = f"auto:{3 * int(v['DOWNSAMPLE'])}" if v["PAD"] == "auto" else v["PAD"]
+        if pad != "0":
+            args += ["--pad", pad, "--pad-value", v["PAD_VALUE"] or ("auto" if v["PAD"] == "auto" else "new")]
         self.run(args + self.flags + ["--stats", self.out("volconv.json")])
 
     def materials_morph(self):
@@ -333,7 +334,8 @@ class Stage:
     def materials_tighten(self):
         v = self.v
         self.run([self.tool("tighten"), self.path("morph", "morph.nrrd"), self.out("sdf_%d.nrrd"),
-                  "--per-label", "--radius", v["R"], "--upsample", v["UPSAMPLE"]] + self.flags
+                  "--per-label", "--radius", v["R"], "--upsample", v["UPSAMPLE"],
+                  "--outside-band", v["TIGHTEN_BAND"] or ("auto" if v["MA_SIDE"] == "inside" else "0")] + self.flags
                  + self.threads_args() + ["--stats", self.out("tighten.json")])
         with open(self.out("tighten.json")) as f:
             outputs = json.load(f)["outputs"]
@@ -363,8 +365,13 @@ class Stage:
         args = []
         for label, sdf in self.sdfs():
             args += ["--sdf", sdf, "--ma", self.path("medialaxis", f"ma_{label}.ply")]
+        hmin = self.v["HMIN"]
+        if hmin == "auto":  # half the radius tighten used; on a tiny, upsampled volume the radius itself
+            with open(self.path("tighten", "tighten.json")) as f:
+                t = json.load(f)["parameters"]
+            hmin = str(t["radius"] / (1 if t["upsample"] > 1 else 2))
         self.run([self.tool("sizingfield")] + args + ["-o", self.out("h0.nrrd"), "--eps", self.v["EPS"],
-                  "--hmin", self.params()["hmin"]] + self.flags + self.threads_args()
+                  "--hmin", hmin] + self.flags + self.threads_args()
                  + ["--stats", self.out("sizingfield.json")])
 
     materials_gradlimit = gradlimit
@@ -385,12 +392,14 @@ class Stage:
             shutil.copyfile(seeds, self.out("points.ply"))
             return None
         self.run([self.tool("multiparticles"), "--materials", self.materials(), "--seeds", seeds]
-                 + self.size_args() + shlex.split(v["MPFLAGS"]) + ["-o", self.out("points.ply")]
+                 + self.size_args() + ["--material-kernel", v["KERNEL"]] + shlex.split(v["MPFLAGS"])
+                 + ["-o", self.out("points.ply")]
                  + self.flags + self.threads_args() + ["--stats", self.out("multiparticles.json")])
 
     def materials_tetlabel(self):
         self.run([self.tool("tetlabel"), self.path("multiparticles", "points.ply"), "--materials",
-                  self.materials(), "-o", self.out("interfaces.ply"), "--material-surfaces", self.dir,
+                  self.materials(), "--kernel", self.v["KERNEL"], "-o", self.out("interfaces.ply"),
+                  "--material-surfaces", self.dir,
                   "--tets", self.out("volume.mesh"), "--improve", self.v["IMPROVE"]] + self.flags
                  + ["--stats", self.out("tetlabel.json")])
 
