@@ -22,7 +22,11 @@ sys.stdout.write('NRRD0004\ntype: uchar\ndimension: 3\nsizes: 4 4 4\nencoding: a
 expect 2 "has the value 1 everywhere" "${MK[@]}" INPUT="$T/full.nrrd" OUT="$T/full"
 expect 2 "isovalue ISO=100 is outside the value range \[0, 63\]" \
   "${MK[@]}" INPUT="$SRC/tests/data/grey_ramp.nrrd" ISO=100 OUT="$T/ramp"
-[ ! -e "$T/empty" ] && [ ! -e "$T/full" ] && [ ! -e "$T/ramp" ] || { echo "a refused input left an OUT folder"; exit 1; }
+# a NRRD that volconv cannot read (its data cut short): volconv's own error, naming the file
+printf 'NRRD0004\ntype: uint8\ndimension: 3\nsizes: 24 24 24\nencoding: raw\n\nxxxx' > "$T/cut.nrrd"
+expect 2 "volconv: error: .*cut.nrrd.: truncated: expected 13824 bytes" "${MK[@]}" INPUT="$T/cut.nrrd" OUT="$T/cut"
+[ ! -e "$T/empty" ] && [ ! -e "$T/full" ] && [ ! -e "$T/ramp" ] && [ ! -e "$T/cut" ] ||
+  { echo "a refused input left an OUT folder"; exit 1; }
 
 # Two separate balls; particles seeded on the first ball only sample one component.
 python3 - "$T" <<'PY'
