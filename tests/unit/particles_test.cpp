@@ -272,6 +272,15 @@ TEST(ParticlesSphere, UniformHexagonalPacking) {
   EXPECT_GE(r.mean_neighbours, 6.0);
   EXPECT_LE(r.mean_neighbours, 12.0);
   EXPECT_GT(r.field_evaluations, std::uint64_t(n));
+  // The engine's counters: every trial re-projects (at least one field
+  // evaluation), a failed projection is a rejected trial, and an update
+  // widens its gather at most once (to the full reach).
+  const EngineStats& e = r.engine;
+  EXPECT_GT(e.updates, std::uint64_t(n));
+  EXPECT_GE(e.field_evaluations, e.trials);
+  EXPECT_LE(e.rejected, e.trials);
+  EXPECT_LE(e.trial_failures, e.rejected);
+  EXPECT_LE(e.regathers, e.updates);
   for (double sp : r.spacing) EXPECT_NEAR(sp, s, 1e-12);
   for (double c : r.curvature) EXPECT_NEAR(c, std::sqrt(2.0), 1e-6);  // κ1 = κ2 = 1
 }

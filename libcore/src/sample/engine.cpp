@@ -180,6 +180,7 @@ Json engine_stats_json(const EngineStats& s) {
             {"settled_skips", s.settled_skips},
             {"field_evaluations", s.field_evaluations},
             {"list_builds", s.list_builds},
+            {"regathers", s.regathers},
             {"updates_per_second", s.seconds_relax > 0 ? double(s.updates) / s.seconds_relax : 0.0},
             {"place_failures", s.place_failures},
             {"trial_failures", s.trial_failures},
@@ -231,6 +232,7 @@ void add_update_counters(EngineStats& into, const EngineStats& from) {
   into.trials += from.trials;
   into.rejected += from.rejected;
   into.settled_skips += from.settled_skips;
+  into.regathers += from.regathers;
   into.field_evaluations += from.field_evaluations;
   into.place_failures += from.place_failures;
   into.trial_failures += from.trial_failures;

@@ -323,6 +323,7 @@ void ParticleEngine<C>::update(std::size_t i, std::size_t cell, std::vector<Cand
          (!varying() || local_spacing(attr, P.type) <= spacing_cap);
     if (ok && reach < full_reach &&
         norm(q.x - P.p.x) + radius_bound(local_spacing(attr, P.type)) > reach) {
+      ++ls.regathers;
       reach = full_reach;
       if (use_lists_)
         gather_list(P.p.x, reach, i, buf);

@@ -259,6 +259,8 @@ struct EngineStats {
   std::uint64_t settled_skips = 0;      ///< updates skipped because the particle's neighbourhood settled
   std::uint64_t field_evaluations = 0;  ///< field / constraint evaluations
   std::uint64_t list_builds = 0;
+  /// Updates whose neighbour gather was redone wider: a trial reached beyond the first one
+  std::uint64_t regathers = 0;
   std::uint64_t place_failures = 0;     ///< seeds and new particles the constraint could not place (dropped)
   std::uint64_t trial_failures = 0;     ///< trial moves the constraint could not re-project (step shrinks)
   std::uint64_t failures_by_reason[int(ProjectFailure::count_)] = {};  ///< place + trial failures
