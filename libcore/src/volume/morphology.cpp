@@ -126,37 +126,50 @@ struct Region {
   std::size_t at(std::size_t i, std::size_t j, std::size_t k) const { return i + nx * (j + ny * k); }
 };
 
+// The passes run on the region packed 64 voxels to a word along x (a row
+// (j,k) is `nw` words, voxel i at bit i % 64 of word i / 64): one word
+// operation does 64 voxels, and the region's traffic is an eighth.
+struct BitRows {
+  std::size_t ny = 0, nz = 0, nw = 0;
+  std::vector<std::uint64_t> w;
+  std::uint64_t* row(std::size_t j, std::size_t k) { return w.data() + (j + ny * k) * nw; }
+  const std::uint64_t* row(std::size_t j, std::size_t k) const { return w.data() + (j + ny * k) * nw; }
+};
+
 // One pass with a basic stencil. rx holds the 3-tap row combination along x;
 // the stencils then combine rows: plus = rx(0,0) + a(+-1,0) + a(0,+-1);
 // ball = rx(0,0) + rx(+-1,0) + rx(0,+-1) + a(+-1,+-1); cube = rx over 3x3.
-// `rows` flags the x rows (j,k) holding any voxel; a row whose stencil rows
-// are all empty (dilation) or include an empty one (erosion) is 0 without
-// being computed, which makes sparse masks and large bounding boxes cheap.
+// Only interior voxels are written (the region's outermost layer stays 0):
+// `valid` masks the bits of x = 1 .. nx - 2. `rows` flags the x rows (j,k)
+// holding any voxel; a row whose stencil rows are all empty (dilation) or
+// include an empty one (erosion) is 0 without being computed, which makes
+// sparse masks and large bounding boxes cheap.
 template <bool Dilate>
-void basic_pass(Region& r, std::vector<std::uint8_t>& rx, std::vector<std::uint8_t>& out,
-                std::vector<std::uint8_t>& rows, std::vector<std::uint8_t>& rows_out, Stencil s) {
-  const std::size_t nx = r.nx, ny = r.ny, nz = r.nz, sy = nx, sz = nx * ny;
-  const std::uint8_t* __restrict a = r.a.data();
+void basic_pass(BitRows& a, BitRows& rx, BitRows& out, std::vector<std::uint8_t>& rows,
+                std::vector<std::uint8_t>& rows_out, const std::vector<std::uint64_t>& valid, Stencil s) {
+  const std::size_t ny = a.ny, nz = a.nz, nw = a.nw;
   const std::uint8_t* rw = rows.data();
-  auto op = [](std::uint8_t p, std::uint8_t q) -> std::uint8_t { return Dilate ? (p | q) : (p & q); };
+  auto op = [](std::uint64_t p, std::uint64_t q) -> std::uint64_t { return Dilate ? (p | q) : (p & q); };
   pm::parallel_for(tbb::blocked_range<std::size_t>(1, nz - 1), [&](const tbb::blocked_range<std::size_t>& zr) {
     for (std::size_t k = zr.begin(); k != zr.end(); ++k)
       for (std::size_t j = 1; j + 1 < ny; ++j) {
-        std::uint8_t* __restrict o = rx.data() + j * sy + k * sz;
+        std::uint64_t* __restrict o = rx.row(j, k);
         if (!rw[j + ny * k]) {
-          std::fill(o, o + nx, std::uint8_t(0));
+          std::fill(o, o + nw, std::uint64_t(0));
           continue;
         }
-        const std::uint8_t* __restrict c = a + j * sy + k * sz;
-        for (std::size_t i = 1; i + 1 < nx; ++i) o[i] = op(op(c[i - 1], c[i]), c[i + 1]);
+        const std::uint64_t* __restrict c = a.row(j, k);
+        for (std::size_t t = 0; t < nw; ++t) {
+          const std::uint64_t left = c[t] << 1 | (t > 0 ? c[t - 1] >> 63 : 0);        // bit i holds x = i - 1
+          const std::uint64_t right = c[t] >> 1 | (t + 1 < nw ? c[t + 1] << 63 : 0);  // bit i holds x = i + 1
+          o[t] = op(op(left, c[t]), right) & valid[t];
+        }
       }
   });
-  const std::uint8_t* __restrict x = rx.data();
   pm::parallel_for(tbb::blocked_range<std::size_t>(1, nz - 1), [&](const tbb::blocked_range<std::size_t>& zr) {
     for (std::size_t k = zr.begin(); k != zr.end(); ++k)
       for (std::size_t j = 1; j + 1 < ny; ++j) {
-        const std::size_t b = j * sy + k * sz;
-        std::uint8_t* __restrict o = out.data() + b;
+        std::uint64_t* __restrict o = out.row(j, k);
         // Which neighbour rows the stencil reads: plus/ball the 5 rows of the yz
         // plus (ball also the 4 yz diagonals), cube all 9.
         bool any = false, all = true;
@@ -168,40 +181,51 @@ void basic_pass(Region& r, std::vector<std::uint8_t>& rx, std::vector<std::uint8
             all &= f;
           }
         if (Dilate ? !any : !all) {
-          std::fill(o, o + nx, std::uint8_t(0));
+          std::fill(o, o + nw, std::uint64_t(0));
           rows_out[j + ny * k] = 0;
           continue;
         }
+        const std::uint64_t *x0 = rx.row(j, k), *xm = rx.row(j - 1, k), *xp = rx.row(j + 1, k),
+                            *xd = rx.row(j, k - 1), *xu = rx.row(j, k + 1);
+        std::uint64_t acc = 0;
         switch (s) {
-          case Stencil::plus:
-            for (std::size_t i = 1; i + 1 < nx; ++i)
-              o[i] = op(op(op(x[b + i], a[b + i - sy]), op(a[b + i + sy], a[b + i - sz])), a[b + i + sz]);
-            break;
-          case Stencil::ball:
-            for (std::size_t i = 1; i + 1 < nx; ++i) {
-              const std::size_t c = b + i;
-              const std::uint8_t rws = op(op(op(x[c], x[c - sy]), op(x[c + sy], x[c - sz])), x[c + sz]);
-              const std::uint8_t diag =
-                  op(op(a[c - sy - sz], a[c + sy - sz]), op(a[c - sy + sz], a[c + sy + sz]));
-              o[i] = op(rws, diag);
+          case Stencil::plus: {
+            const std::uint64_t *am = a.row(j - 1, k), *ap = a.row(j + 1, k), *ad = a.row(j, k - 1),
+                                *au = a.row(j, k + 1);
+            for (std::size_t t = 0; t < nw; ++t) {
+              o[t] = op(op(op(x0[t], am[t]), op(ap[t], ad[t])), au[t]) & valid[t];
+              acc |= o[t];
             }
             break;
-          default:  // cube
-            for (std::size_t i = 1; i + 1 < nx; ++i) {
-              const std::size_t c = b + i;
-              const std::uint8_t m0 = op(op(x[c - sy - sz], x[c - sz]), x[c + sy - sz]);
-              const std::uint8_t m1 = op(op(x[c - sy], x[c]), x[c + sy]);
-              const std::uint8_t m2 = op(op(x[c - sy + sz], x[c + sz]), x[c + sy + sz]);
-              o[i] = op(op(m0, m1), m2);
+          }
+          case Stencil::ball: {
+            const std::uint64_t *amd = a.row(j - 1, k - 1), *apd = a.row(j + 1, k - 1), *amu = a.row(j - 1, k + 1),
+                                *apu = a.row(j + 1, k + 1);
+            for (std::size_t t = 0; t < nw; ++t) {
+              const std::uint64_t rws = op(op(op(x0[t], xm[t]), op(xp[t], xd[t])), xu[t]);
+              const std::uint64_t diag = op(op(amd[t], apd[t]), op(amu[t], apu[t]));
+              o[t] = op(rws, diag) & valid[t];
+              acc |= o[t];
             }
             break;
+          }
+          default: {  // cube
+            const std::uint64_t *xmd = rx.row(j - 1, k - 1), *xpd = rx.row(j + 1, k - 1),
+                                *xmu = rx.row(j - 1, k + 1), *xpu = rx.row(j + 1, k + 1);
+            for (std::size_t t = 0; t < nw; ++t) {
+              const std::uint64_t m0 = op(op(xmd[t], xd[t]), xpd[t]);
+              const std::uint64_t m1 = op(op(xm[t], x0[t]), xp[t]);
+              const std::uint64_t m2 = op(op(xmu[t], xu[t]), xpu[t]);
+              o[t] = op(op(m0, m1), m2) & valid[t];
+              acc |= o[t];
+            }
+            break;
+          }
         }
-        std::uint8_t acc = 0;
-        for (std::size_t i = 1; i + 1 < nx; ++i) acc |= o[i];
-        rows_out[j + ny * k] = acc;
+        rows_out[j + ny * k] = acc != 0;
       }
   });
-  r.a.swap(out);
+  a.w.swap(out.w);
   rows.swap(rows_out);
 }
 
@@ -221,20 +245,35 @@ std::size_t growth(const std::vector<MorphStep>& steps) {
 }
 
 void run_steps(Region& r, const std::vector<MorphStep>& steps) {
-  std::vector<std::uint8_t> rx(r.a.size(), 0), out(r.a.size(), 0);
-  std::vector<std::uint8_t> rows(r.ny * r.nz, 0), rows_out(r.ny * r.nz, 0);
-  for (std::size_t k = 0; k < r.nz; ++k)
-    for (std::size_t j = 0; j < r.ny; ++j) {
-      const std::uint8_t* row = r.a.data() + r.at(0, j, k);
-      rows[j + r.ny * k] = std::any_of(row, row + r.nx, [](std::uint8_t v) { return v != 0; });
+  const std::size_t nx = r.nx, ny = r.ny, nz = r.nz, nw = (nx + 63) / 64;
+  BitRows a{ny, nz, nw, std::vector<std::uint64_t>(ny * nz * nw, 0)};
+  BitRows rx = a, out = a;
+  std::vector<std::uint8_t> rows(ny * nz, 0), rows_out(ny * nz, 0);
+  // Bits of x = 1 .. nx - 2 (the passes write only those).
+  std::vector<std::uint64_t> valid(nw, 0);
+  for (std::size_t i = 1; i + 1 < nx; ++i) valid[i / 64] |= std::uint64_t(1) << (i % 64);
+  pm::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
+    for (std::size_t j = 0; j < ny; ++j) {
+      const std::uint8_t* src = r.a.data() + r.at(0, j, k);
+      std::uint64_t* dst = a.row(j, k);
+      std::uint64_t any = 0;
+      for (std::size_t t = 0; t < nw; ++t) {
+        std::uint64_t w = 0;
+        const std::size_t i0 = 64 * t, n = std::min<std::size_t>(64, nx - i0);
+        for (std::size_t b = 0; b < n; ++b) w |= std::uint64_t(src[i0 + b] != 0) << b;
+        dst[t] = w;
+        any |= w;
+      }
+      rows[j + ny * k] = any != 0;
     }
+  });
   auto passes = [&](bool dilate, Stencil s, int iterations) {
     for (int it = 0; it < iterations; ++it)
       for (Stencil part : stencil_parts(s)) {
         if (dilate)
-          basic_pass<true>(r, rx, out, rows, rows_out, part);
+          basic_pass<true>(a, rx, out, rows, rows_out, valid, part);
         else
-          basic_pass<false>(r, rx, out, rows, rows_out, part);
+          basic_pass<false>(a, rx, out, rows, rows_out, valid, part);
       }
   };
   for (const MorphStep& s : steps) {
@@ -251,6 +290,13 @@ void run_steps(Region& r, const std::vector<MorphStep>& steps) {
         break;
     }
   }
+  pm::parallel_for(std::size_t(0), nz, [&](std::size_t k) {
+    for (std::size_t j = 0; j < ny; ++j) {
+      std::uint8_t* dst = r.a.data() + r.at(0, j, k);
+      const std::uint64_t* src = a.row(j, k);
+      for (std::size_t i = 0; i < nx; ++i) dst[i] = std::uint8_t((src[i / 64] >> (i % 64)) & 1);
+    }
+  });
 }
 
 struct BBox {
@@ -280,19 +326,29 @@ Region make_region(const BBox& b, std::size_t pad) {
   return r;
 }
 
-/// Calls f(region index, volume index) for every region voxel inside the volume, parallel over z.
+/// Calls f(region index, volume index, n) for every x run of n region voxels
+/// inside the volume (region and volume indices advance together along a
+/// run), parallel over z.
 template <class F>
-void for_region_in_volume(const Region& r, const Dims& d, F&& f) {
+void for_region_rows_in_volume(const Region& r, const Dims& d, F&& f) {
   const long zlo = std::max(0L, r.z0), zhi = std::min(long(d.nz), r.z0 + long(r.nz));
   const long ylo = std::max(0L, r.y0), yhi = std::min(long(d.ny), r.y0 + long(r.ny));
   const long xlo = std::max(0L, r.x0), xhi = std::min(long(d.nx), r.x0 + long(r.nx));
   if (zlo >= zhi || ylo >= yhi || xlo >= xhi) return;
+  const std::size_t n = std::size_t(xhi - xlo);
   pm::parallel_for(tbb::blocked_range<long>(zlo, zhi), [&](const tbb::blocked_range<long>& zr) {
     for (long k = zr.begin(); k != zr.end(); ++k)
       for (long j = ylo; j < yhi; ++j)
-        for (long i = xlo; i < xhi; ++i)
-          f(r.at(std::size_t(i - r.x0), std::size_t(j - r.y0), std::size_t(k - r.z0)),
-            std::size_t(i) + d.nx * (std::size_t(j) + d.ny * std::size_t(k)));
+        f(r.at(std::size_t(xlo - r.x0), std::size_t(j - r.y0), std::size_t(k - r.z0)),
+          std::size_t(xlo) + d.nx * (std::size_t(j) + d.ny * std::size_t(k)), n);
+  });
+}
+
+/// Calls f(region index, volume index) for every region voxel inside the volume, parallel over z.
+template <class F>
+void for_region_in_volume(const Region& r, const Dims& d, F&& f) {
+  for_region_rows_in_volume(r, d, [&](std::size_t ri, std::size_t vi, std::size_t n) {
+    for (std::size_t t = 0; t < n; ++t) f(ri + t, vi + t);
   });
 }
 
@@ -376,8 +432,15 @@ std::vector<std::size_t> index_counts(const std::vector<std::uint16_t>& idx, std
   std::vector<std::size_t> per(chunks * nl, 0);
   pm::parallel_for(std::size_t(0), chunks, [&](std::size_t ch) {
     std::size_t* c = per.data() + ch * nl;
-    for (std::size_t i = ch * kChunk, e = std::min(n, i + kChunk); i < e; ++i)
-      if (idx[i] != kEmpty) ++c[idx[i]];
+    // By runs of one label (label maps are mostly long runs): one addition
+    // per run instead of a chain of increments of the same counter.
+    for (std::size_t i = ch * kChunk, e = std::min(n, i + kChunk); i < e;) {
+      const std::uint16_t v = idx[i];
+      std::size_t j = i + 1;
+      while (j < e && idx[j] == v) ++j;
+      if (v != kEmpty) c[v] += j - i;
+      i = j;
+    }
   });
   std::vector<std::size_t> c(nl, 0);
   for (std::size_t ch = 0; ch < chunks; ++ch)
@@ -485,30 +548,48 @@ void for_blocks(const Dims& in, const Dims& out, int k, F&& f) {
   });
 }
 
+// The most frequent label of each k^3 block (ties: the smallest index;
+// empty voxels do not vote). Most blocks hold one label: they skip the sort.
 Indexed downsample_indices(const Indexed& x, int k) {
   Indexed o;
   o.values = x.values;
   o.dims = downsampled_dims(x.dims, k);
   o.idx.assign(o.dims.count(), kEmpty);
-  for_blocks(x.dims, o.dims, k, [&](std::size_t oi, const std::vector<std::size_t>& block) {
+  const Dims& in = x.dims;
+  const Dims& out = o.dims;
+  const std::size_t kk = std::size_t(k);
+  pm::parallel_for(tbb::blocked_range<std::size_t>(0, out.nz), [&](const tbb::blocked_range<std::size_t>& zr) {
     std::vector<std::uint16_t> vals;
-    vals.reserve(block.size());
-    for (std::size_t b : block)
-      if (x.idx[b] != kEmpty) vals.push_back(x.idx[b]);
-    if (vals.empty()) return;
-    std::sort(vals.begin(), vals.end());
-    std::uint16_t best = vals[0];
-    std::size_t best_count = 0;
-    for (std::size_t a = 0; a < vals.size();) {
-      std::size_t b = a;
-      while (b < vals.size() && vals[b] == vals[a]) ++b;
-      if (b - a > best_count) {
-        best_count = b - a;
-        best = vals[a];
-      }
-      a = b;
-    }
-    o.idx[oi] = best;
+    vals.reserve(kk * kk * kk);
+    for (std::size_t oz = zr.begin(); oz != zr.end(); ++oz)
+      for (std::size_t oy = 0; oy < out.ny; ++oy)
+        for (std::size_t ox = 0; ox < out.nx; ++ox) {
+          vals.clear();
+          const std::size_t x1 = std::min(in.nx, ox * kk + kk);
+          for (std::size_t z = oz * kk; z < std::min(in.nz, oz * kk + kk); ++z)
+            for (std::size_t y = oy * kk; y < std::min(in.ny, oy * kk + kk); ++y) {
+              const std::uint16_t* row = x.idx.data() + in.nx * (y + in.ny * z);
+              for (std::size_t i = ox * kk; i < x1; ++i)
+                if (row[i] != kEmpty) vals.push_back(row[i]);
+            }
+          if (vals.empty()) continue;
+          std::uint16_t best = vals[0];
+          if (std::find_if(vals.begin(), vals.end(), [&](std::uint16_t v) { return v != best; }) != vals.end()) {
+            std::sort(vals.begin(), vals.end());
+            best = vals[0];
+            std::size_t best_count = 0;
+            for (std::size_t a = 0; a < vals.size();) {
+              std::size_t b = a;
+              while (b < vals.size() && vals[b] == vals[a]) ++b;
+              if (b - a > best_count) {
+                best_count = b - a;
+                best = vals[a];
+              }
+              a = b;
+            }
+          }
+          o.idx[ox + out.nx * (oy + out.ny * oz)] = best;
+        }
   });
   return o;
 }
@@ -730,11 +811,19 @@ LabelMorphResult morph_labels(const Volume& labels, const LabelMorphParams& p) {
       if (!processed[a] || boxes[a].empty()) continue;
       Region r = make_region(boxes[a], growth(*seq[a]) + 1);
       const auto li = std::uint16_t(a);
-      for_region_in_volume(r, d, [&](std::size_t ri, std::size_t vi) { r.a[ri] = x.idx[vi] == li; });
+      // Row by row with plain pointers (loops the compiler vectorises).
+      for_region_rows_in_volume(r, d, [&](std::size_t ri, std::size_t vi, std::size_t n) {
+        std::uint8_t* __restrict ra = r.a.data() + ri;
+        const std::uint16_t* __restrict xi = x.idx.data() + vi;
+        for (std::size_t t = 0; t < n; ++t) ra[t] = xi[t] == li;
+      });
       run_steps(r, *seq[a]);
-      for_region_in_volume(r, d, [&](std::size_t ri, std::size_t vi) {
-        if (!r.a[ri]) return;
-        if (x.idx[vi] == li || state[vi] == kEmpty) state[vi] = li;
+      for_region_rows_in_volume(r, d, [&](std::size_t ri, std::size_t vi, std::size_t n) {
+        const std::uint8_t* __restrict ra = r.a.data() + ri;
+        const std::uint16_t* __restrict xi = x.idx.data() + vi;
+        std::uint16_t* __restrict st = state.data() + vi;
+        for (std::size_t t = 0; t < n; ++t)
+          st[t] = ra[t] && (xi[t] == li || st[t] == kEmpty) ? li : st[t];
       });
     }
     pm::parallel_for(tbb::blocked_range<std::size_t>(0, state.size()), [&](const tbb::blocked_range<std::size_t>& r) {
