@@ -76,6 +76,11 @@ assert st["labels_after"] == st["labels_before"], st
 assert sum(st["labels_after"].values()) == 63 ** 3, st
 PY
 
+# gzip by default; --no-gzip (the pipelines' intermediates) writes the same voxels raw.
+"$MO" "$M" "$T/gz.nrrd" --labels all --ops "close:ball,open:ball" -q
+"$MO" "$M" "$T/raw.nrrd" --labels all --ops "close:ball,open:ball" --no-gzip -q
+/usr/bin/python3 "$SRC/tests/cli/same_voxels.py" "$T/gz.nrrd" "$T/raw.nrrd" gzip raw
+
 # 4. A failed run leaves no output and no temporary file.
 mkdir "$T/fail"
 if "$MO" "$M" "$T/fail/out.nrrd" --op open --labels 9 2>/dev/null; then echo "absent label accepted"; exit 1; fi

@@ -35,6 +35,13 @@ if [ -x "$GL" ]; then
   python3 -c "import json,sys; g=json.load(open(sys.argv[1])); assert g['min'] > 0, g" "$T/gi.json"
 fi
 
+# A float field is written raw by default (as tighten and gradlimit write theirs); --gzip
+# compresses the same values, the --lfs volume too.
+"$SZ" $S -o "$T/h_raw.nrrd" --lfs "$T/l_raw.nrrd" -q
+"$SZ" $S -o "$T/h_gz.nrrd" --lfs "$T/l_gz.nrrd" --gzip -q
+/usr/bin/python3 "$SRC/tests/cli/same_voxels.py" "$T/h_raw.nrrd" "$T/h_gz.nrrd" raw gzip
+/usr/bin/python3 "$SRC/tests/cli/same_voxels.py" "$T/l_raw.nrrd" "$T/l_gz.nrrd" raw gzip
+
 # Failed runs leave no output and no temporary file.
 mkdir "$T/fail"
 if "$SZ" $S -o "$T/fail/h.nrrd" --eps 0 2>/dev/null; then echo "eps 0 accepted"; exit 1; fi

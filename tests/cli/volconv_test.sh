@@ -121,6 +121,12 @@ assert k["type"] == "float" and k["min"] < 0 < k["max"], k
 assert all(abs(s - 0.5) < 1e-9 for s in k["spacing"]), k["spacing"]
 PY
 
+# Label maps are gzip-compressed by default; --no-gzip (the pipelines' intermediates) writes
+# the same voxels raw.
+"$VC" "$M" "$T/gz.nrrd" --type smallest -q
+"$VC" "$M" "$T/raw.nrrd" --type smallest --no-gzip -q
+/usr/bin/python3 "$SRC/tests/cli/same_voxels.py" "$T/gz.nrrd" "$T/raw.nrrd" gzip raw
+
 # 4. A failed run leaves no output and no temporary file.
 mkdir "$T/fail"
 # --type smallest is for integer volumes: a float one is refused, naming the file.

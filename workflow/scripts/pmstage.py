@@ -204,14 +204,14 @@ class Stage:
             extra = ["--type", "uint8"]
         else:
             extra = ["--threshold", v["ISO"]]
-        self.run([self.tool("volconv"), self.input, self.out("mask.nrrd")] + extra + self.flags)
+        self.run([self.tool("volconv"), self.input, self.out("mask.nrrd"), "--no-gzip"] + extra + self.flags)
 
     def surface_morph(self):
         p, v = self.params(), self.v
         if not p["use_mask"]:
             return self.not_needed("grey-level input")
         st = v["STENCIL"]
-        self.run([self.tool("morph"), self.path("mask", "mask.nrrd"), self.out("morph.nrrd"),
+        self.run([self.tool("morph"), self.path("mask", "mask.nrrd"), self.out("morph.nrrd"), "--no-gzip",
                   "--ops", f"close:{st},open:{st}"]
                  + (["--min-component", v["MIN_COMPONENT"]] if v["MIN_COMPONENT"] else [])
                  + self.flags + ["--stats", self.out("morph.json")])
@@ -223,7 +223,7 @@ class Stage:
                       "--radius", v["R"], "--upsample", v["UPSAMPLE"]] + self.flags
                      + self.threads_args() + ["--stats", self.out("tighten.json")])
         else:  # Makefile.pipeline's grey_sdf.nrrd: the isosurface's signed distance
-            self.run([self.tool("volconv"), self.input, self.out("sdf.nrrd"), "--distance", v["ISO"]]
+            self.run([self.tool("volconv"), self.input, self.out("sdf.nrrd"), "--no-gzip", "--distance", v["ISO"]]
                      + self.flags)
 
     def surface_medialaxis(self):
@@ -307,7 +307,7 @@ class Stage:
 
     def materials_labels(self):
         v = self.v
-        args = [self.tool("volconv"), self.input, self.out("labels.nrrd"), "--type", "smallest"]
+        args = [self.tool("volconv"), self.input, self.out("labels.nrrd"), "--no-gzip", "--type", "smallest"]
         if v["MERGE"]:
             args += ["--merge", v["MERGE"]]
         if v["MIN_VOXELS"] != "0":
@@ -326,7 +326,7 @@ class Stage:
             self.commands.append(shlex.join(["cp", src, self.out("morph.nrrd")]))
             shutil.copyfile(src, self.out("morph.nrrd"))
             return None
-        self.run([self.tool("morph"), src, self.out("morph.nrrd"), "--labels", "all"]
+        self.run([self.tool("morph"), src, self.out("morph.nrrd"), "--no-gzip", "--labels", "all"]
                  + (["--ops", v["MORPH_OPS"]] if v["MORPH_OPS"] != "none" else [])
                  + (["--downsample", v["DOWNSAMPLE"]] if v["DOWNSAMPLE"] != "1" else [])
                  + ["--vote"] + self.flags + ["--stats", self.out("morph.json")])
@@ -377,7 +377,7 @@ class Stage:
     materials_gradlimit = gradlimit
 
     def materials_argmax(self):
-        self.run([self.tool("volconv"), self.materials(), self.out("argmax.nrrd"), "--argmax"] + self.flags)
+        self.run([self.tool("volconv"), self.materials(), self.out("argmax.nrrd"), "--no-gzip", "--argmax"] + self.flags)
 
     def materials_mcinit(self):
         self.run([self.tool("mcinit"), self.path("argmax", "argmax.nrrd"), self.out("junction_seeds.ply"),

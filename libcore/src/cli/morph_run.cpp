@@ -63,6 +63,9 @@ void add_morph_options(CLI::App& app, MorphRun& cfg) {
                  "fewer than N voxels after morphology and downsampling, refilling them by voting from their "
                  "neighbours (implies --vote); 0 = keep all")
       ->capture_default_str();
+  app.add_flag("--no-gzip", cfg.no_gzip,
+               "Write the output uncompressed (NRRD, MHA; default: gzip where the format allows), for a "
+               "pipeline's intermediate files");
   app.add_flag("--grey", cfg.grey, "Grey-value input: only --downsample (block mean) is allowed");
 }
 
@@ -149,7 +152,9 @@ void run_morph(MorphRun& cfg, const CommonFlags& flags) {
                " (use --vote to fill them from their neighbours)");
     result = std::move(r.labels);
   }
-  pm::write_volume(result, out);
+  pm::VolumeWriteParams wp;
+  wp.compress = !cfg.no_gzip;
+  pm::write_volume(result, out, wp);
   st["outputs"] = {out};
   st["counts"]["voxels"] = result.count();
 }

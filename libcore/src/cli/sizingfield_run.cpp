@@ -34,6 +34,9 @@ void add_sizingfield_options(CLI::App& app, SizingFieldRun& cfg) {
                "Evaluate LFS and curvature at the grid node, not at its closest "
                "surface point");
   app.add_option("--lfs", cfg.lfs_out, "Also write the local feature size volume (world units, 0 = unknown)");
+  app.add_flag("--gzip", cfg.gzip,
+               "Compress the outputs where the format allows (a float field: gzip costs more time than the "
+               "disk it saves; off by default, as in tighten and gradlimit)");
 }
 
 void run_sizingfield(SizingFieldRun& cfg, const CommonFlags& flags) {
@@ -82,8 +85,10 @@ void run_sizingfield(SizingFieldRun& cfg, const CommonFlags& flags) {
   }
   pm::info(std::to_string(r.known) + " known nodes, h " + std::to_string(r.h_lo) + " to " + std::to_string(r.h_hi) +
            ", LFS " + std::to_string(r.lfs_lo) + " to " + std::to_string(r.lfs_hi) + " (world units)");
-  pm::write_volume(r.h, out);
-  if (!lfs_out.empty()) pm::write_volume(r.lfs, lfs_out);
+  pm::VolumeWriteParams wp;
+  wp.compress = cfg.gzip;
+  pm::write_volume(r.h, out, wp);
+  if (!lfs_out.empty()) pm::write_volume(r.lfs, lfs_out, wp);
   st["outputs"] = lfs_out.empty() ? pm::Json{out} : pm::Json{out, lfs_out};
   st["counts"] = {{"known", r.known},
                   {"curvature_limited", r.curvature_limited},

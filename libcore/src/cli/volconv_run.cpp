@@ -107,6 +107,9 @@ void add_volconv_options(CLI::App& app, VolConvRun& cfg) {
                  "neighbouring label (0 = keep all)")
       ->capture_default_str();
   app.add_flag("--allow-nonfinite", cfg.allow_nonfinite, "Copy NaN/Inf voxels instead of refusing the input");
+  app.add_flag("--no-gzip", cfg.no_gzip,
+               "Write the output uncompressed (NRRD, MHA; default: gzip where the format allows). For a pipeline's "
+               "intermediate files: a 500x470x136 label map takes 0.07 s to deflate and as long to inflate");
   app.add_option("--type", cfg.type,
                  "Convert the voxel type: uint8 int8 uint16 int16 uint32 int32 float double, or smallest = the "
                  "smallest integer type holding every value (label maps: uint8 for labels 0-255)");
@@ -267,7 +270,9 @@ void run_volconv(VolConvRun& cfg, const CommonFlags& flags, const CLI::App& app)
   } else if (!type.empty()) {
     v = v.converted(pm::parse_voxel_type(type));
   }
-  pm::write_volume(v, out);
+  pm::VolumeWriteParams wp;
+  wp.compress = !cfg.no_gzip;
+  pm::write_volume(v, out, wp);
   st["outputs"] = {out};
   st["counts"] = {{"voxels", v.count()}};
 }

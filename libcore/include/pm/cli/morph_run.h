@@ -22,6 +22,7 @@ struct MorphRun {
   pm::LabelMorphParams params;
   int iterations = 1;
   bool grey = false;
+  bool no_gzip = false;  ///< --no-gzip: write the output uncompressed
 };
 
 void add_morph_options(CLI::App& app, MorphRun& r);

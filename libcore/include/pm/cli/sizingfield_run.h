@@ -20,6 +20,7 @@ struct SizingFieldRun {
   pm::SizingFieldParams params;
   bool no_contract = false;
   bool at_node = false;
+  bool gzip = false;  ///< --gzip: compress the outputs
 };
 
 void add_sizingfield_options(CLI::App& app, SizingFieldRun& r);

@@ -32,6 +32,7 @@ struct VolConvRun {
   std::string pad = "0";        ///< N, auto or auto:N (see --pad)
   std::string pad_value = "0";  ///< number, new or auto
   std::size_t min_voxels = 0;
+  bool no_gzip = false;  ///< --no-gzip: write the output uncompressed
 };
 
 void add_volconv_options(CLI::App& app, VolConvRun& r);
