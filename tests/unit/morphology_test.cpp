@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdlib>
+
 #include "pm/base/error.h"
 
 namespace pm {
@@ -105,6 +107,58 @@ TEST(Morphology, OutsideIsBackground) {
   const Volume c = closing(half, {Stencil::f2});
   EXPECT_EQ(count_nonzero(c), 64u);
   EXPECT_EQ(c.get(0, 0, 0), 1);
+}
+
+// Erosion and dilation by their definition: voxel (i,j,k) of the result is the
+// and (erosion) or or (dilation) of the mask over the stencil's offsets, with
+// everything outside the volume background.
+Volume brute_force(const Volume& m, Stencil s, bool dilate_op) {
+  const Dims& d = m.dims();
+  Volume out(VoxelType::u8, d);
+  auto in = [&](long i, long j, long k) {
+    return i >= 0 && j >= 0 && k >= 0 && i < long(d.nx) && j < long(d.ny) && k < long(d.nz) &&
+           m.get(std::size_t(i), std::size_t(j), std::size_t(k)) != 0;
+  };
+  for (long k = 0; k < long(d.nz); ++k)
+    for (long j = 0; j < long(d.ny); ++j)
+      for (long i = 0; i < long(d.nx); ++i) {
+        bool acc = !dilate_op;
+        for (int dk = -1; dk <= 1; ++dk)
+          for (int dj = -1; dj <= 1; ++dj)
+            for (int di = -1; di <= 1; ++di) {
+              const int l1 = std::abs(di) + std::abs(dj) + std::abs(dk);
+              if ((s == Stencil::plus && l1 > 1) || (s == Stencil::ball && l1 > 2)) continue;
+              const bool v = in(i + di, j + dj, k + dk);
+              acc = dilate_op ? (acc || v) : (acc && v);
+            }
+        out.set(std::size_t(i), std::size_t(j), std::size_t(k), acc ? 1 : 0);
+      }
+  return out;
+}
+
+TEST(Morphology, RowsOfManyWordsMatchTheDefinition) {
+  // The passes pack 64 voxels to a word along x: rows of 1, 2 and 3 words
+  // (63, 64, 65, 130 voxels plus the region's margin) on a random mask.
+  // Erosions of a mask 95% inside and dilations of one 5% inside, so that
+  // most voxels at a word's edge change or keep their value by a neighbour
+  // across it.
+  std::uint64_t state = 12345;
+  auto inside = [&](unsigned percent) {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return (state >> 33) % 100 < percent;
+  };
+  for (std::size_t nx : {std::size_t(63), std::size_t(64), std::size_t(65), std::size_t(130)})
+    for (bool dil : {false, true}) {
+      Volume m(VoxelType::u8, Dims{nx, 6, 5});
+      for (std::size_t c = 0; c < m.count(); ++c) m.set(c, inside(dil ? 5 : 95) ? 1 : 0);
+      for (Stencil s : {Stencil::plus, Stencil::ball, Stencil::cube}) {
+        const Volume got = dil ? dilate(m, {s}) : erode(m, {s});
+        const Volume want = brute_force(m, s, dil);
+        std::size_t differ = 0;
+        for (std::size_t c = 0; c < m.count(); ++c) differ += got.get(c) != want.get(c);
+        EXPECT_EQ(differ, 0u) << "nx " << nx << " " << stencil_name(s) << (dil ? " dilate" : " erode");
+      }
+  }
 }
 
 TEST(Morphology, ParseSteps) {
