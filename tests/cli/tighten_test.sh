@@ -54,6 +54,19 @@ assert b["min"] == a["min"], (a["min"], b["min"])          # inside: exact
 assert abs(b["max"] - a["max"]) <= 0.5, (a["max"], b["max"])  # far outside: within a voxel
 assert st["parameters"]["outside_band"] == 0.5, st["parameters"]
 PY
+# The file says so (NRRD key pm_exact_positive), and the tools that would read farther out
+# refuse it, naming the file: medialaxis --side both, and a sizing field band wider than 0.5.
+grep -aq "^pm_exact_positive:=0.5$" "$T/ob.nrrd" || { echo "no pm_exact_positive key"; head -c 400 "$T/ob.nrrd"; exit 1; }
+"$TI" "$D/box_mask.nrrd" "$T/exact.nrrd" --radius 0.5 -q
+if grep -aq "pm_exact" "$T/exact.nrrd"; then echo "an exact distance has a pm_exact key"; exit 1; fi
+"$BIN/medialaxis" "$T/exact.nrrd" "$T/ma.ply" --side both -q
+if "$BIN/medialaxis" "$T/ob.nrrd" "$T/ma_ob.ply" --side both 2> "$T/ma.err"; then echo "banded distance accepted by --side both"; exit 1; fi
+grep -q 'medialaxis: error: ".*ob.nrrd": .*outside the surface are exact only within 0.5 .*(tighten --outside-band), but --side both reads them' "$T/ma.err" ||
+  { cat "$T/ma.err"; exit 1; }
+[ ! -e "$T/ma_ob.ply" ] || { echo "refused medialaxis left an output"; exit 1; }
+if "$BIN/sizingfield" --sdf "$T/ob.nrrd" --ma "$T/ma.ply" -o "$T/h_ob.nrrd" 2> "$T/sz.err"; then echo "banded distance accepted by sizingfield"; exit 1; fi
+grep -q 'sizingfield: error: .*surface 1 (".*ob.nrrd"): its distances outside the surface are exact only within 0.5' "$T/sz.err" ||
+  { cat "$T/sz.err"; exit 1; }
 
 # 5. A failed run leaves no output and no temporary file.
 mkdir "$T/fail"

@@ -146,6 +146,34 @@ TEST(VolumeIoRoundTrip, NrrdAttachedRawAndGzip) {
   EXPECT_NE(header.find("kinds: domain domain domain"), std::string::npos) << header;
 }
 
+TEST(VolumeIoRoundTrip, NrrdKeepsKeyValuePairs) {
+  // tighten --outside-band says in the file how far its distances are exact;
+  // the NRRD writer and reader keep such keys (attached and detached headers).
+  const std::string dir = test::temp_dir();
+  Volume v(VoxelType::f32, Dims{3, 4, 5}, oblique_geometry());
+  v.set_key(kExactPositiveKey, "24.738633753705962");
+  v.set_key("pm_note", "two words");
+  for (const char* name : {"k.nrrd", "k.nhdr"}) {
+    write_volume(v, dir + "/" + name);
+    const Volume r = read_volume(dir + "/" + name);
+    EXPECT_EQ(r.keys(), v.keys()) << name;
+    EXPECT_EQ(exact_within(r, true, name), 24.738633753705962) << name;
+    EXPECT_TRUE(std::isinf(exact_within(r, false, name))) << name;  // no key: exact everywhere
+  }
+  EXPECT_NE(slurp(dir + "/k.nrrd").substr(0, 800).find("pm_exact_positive:=24.738633753705962"), std::string::npos);
+  // A value that is not a distance is refused, naming the key and the value.
+  Volume bad(VoxelType::f32, Dims{2, 2, 2});
+  bad.set_key(kExactNegativeKey, "-1");
+  try {
+    exact_within(bad, false, "b.nrrd");
+    FAIL() << "a negative band was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("b.nrrd: key pm_exact_negative is \"-1\"; expected a distance > 0"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(VolumeIoRoundTrip, NrrdDetachedHeaderNamesTheFinalDataFile) {
   for (bool gz : {false, true}) {
     const std::string dir = test::temp_dir();

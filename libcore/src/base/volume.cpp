@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <sstream>
@@ -202,6 +203,17 @@ Volume Volume::converted(VoxelType t) const {
     });
   });
   return out;
+}
+
+double exact_within(const Volume& sdf, bool positive_side, const std::string& what) {
+  const char* key = positive_side ? kExactPositiveKey : kExactNegativeKey;
+  const std::string v = sdf.key(key);
+  if (v.empty()) return HUGE_VAL;
+  char* end = nullptr;
+  const double w = std::strtod(v.c_str(), &end);
+  if (end == v.c_str() || *end != '\0' || !(w > 0) || !std::isfinite(w))
+    throw InputError(what + ": key " + key + " is \"" + v + "\"; expected a distance > 0 (world units)");
+  return w;
 }
 
 Box Volume::world_bounds() const {

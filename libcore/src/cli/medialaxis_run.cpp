@@ -103,8 +103,11 @@ void run_medialaxis(MedialAxisRun& cfg, const CommonFlags& flags) {
     try {
       r = pm::medial_axis(sdf, p);
     } catch (const pm::InputError& e) {
+      // The hint is for a volume that is not a distance (a mask or a grey-level scan).
+      const bool banded = std::string(e.what()).find("--outside-band") != std::string::npos;
       throw pm::InputError(pm::quote(in) + ": " + e.what() +
-                           (std::isnan(iso) ? "; tighten a mask first, or give --iso for a grey-level volume" : ""));
+                           (std::isnan(iso) && !banded ? "; tighten a mask first, or give --iso for a grey-level volume"
+                                                       : ""));
     }
   }
   if (r.points.vertices.empty()) pm::warn("no medial-axis points found");

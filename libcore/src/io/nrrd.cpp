@@ -328,6 +328,16 @@ Volume read_nrrd(const std::string& path) {
   Volume v(type, dims, geom);
   std::memcpy(v.raw(), h.n->data, v.byte_size());
   v.set_frame_source(std::move(frame));
+  // The header's key/value pairs (Teem hands out copies).
+  for (unsigned i = 0; i < nrrdKeyValueSize(h.n); ++i) {
+    char *key = nullptr, *value = nullptr;
+    nrrdKeyValueIndex(h.n, &key, &value, i);
+    if (key && value) v.set_key(key, value);
+    if (!nrrdStateKeyValueReturnInternalPointers) {
+      std::free(key);
+      std::free(value);
+    }
+  }
   return v;
 }
 
@@ -360,6 +370,8 @@ void wrap_volume(NrrdHolder& h, const Volume& v, const std::string& where) {
   }
   nrrdAxisInfoSet_va(h.n, nrrdAxisInfoSpaceDirection, dir[0], dir[1], dir[2]);
   nrrdAxisInfoSet_va(h.n, nrrdAxisInfoKind, nrrdKindDomain, nrrdKindDomain, nrrdKindDomain);
+  for (const auto& [key, value] : v.keys())
+    if (nrrdKeyValueAdd(h.n, key.c_str(), value.c_str())) throw Error(where + ": " + teem_error());
 }
 
 // zlib's fastest level, as nibabel writes .nii.gz: label maps, masks and

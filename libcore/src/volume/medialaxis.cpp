@@ -94,6 +94,21 @@ MedialAxisResult medial_axis(const Volume& sdf, const MedialAxisParams& p) {
   // whole rest of the volume) costs nothing.
   const double foot_lo = p.inside ? -foot_d : -3.5 * diag, foot_hi = p.outside ? foot_d : 3.5 * diag;
   const double fill_lo = p.inside ? -fill_d : -2.5 * diag, fill_hi = p.outside ? fill_d : 2.5 * diag;
+  // Those nodes' values, and their neighbours' (central differences), must be
+  // exact: a distance that is exact only near its surface on one side
+  // (tighten --outside-band) is refused where this would read farther.
+  const double hmax = std::max(h[0], std::max(h[1], h[2]));
+  const std::string side = p.inside && p.outside ? "both" : p.inside ? "inside" : "outside";
+  for (const bool positive : {true, false}) {
+    const double need = (positive ? foot_hi : -foot_lo) + hmax, exact = exact_within(sdf, positive, "medial_axis: input");
+    if (need > exact)
+      throw InputError("medial_axis: input: its distances " + std::string(positive ? "outside" : "inside") +
+                       " the surface are exact only within " + format_number(exact) +
+                       " of it (tighten --outside-band), but --side " + side + " reads them up to " +
+                       format_number(need) + " (world units); expected --side " + (positive ? "inside" : "outside") +
+                       " with a band of at least " + format_number(3.5 * diag + hmax) +
+                       " (tighten --outside-band auto), or a distance without --outside-band");
+  }
   const Vec3 ex = e[0] / (2 * h[0]), ey = e[1] / (2 * h[1]), ez = e[2] / (2 * h[2]);  // central differences
 
   // Foot point of x from the guess p = x - f n0 (f: value at x, n0: unit

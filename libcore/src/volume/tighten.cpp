@@ -9,6 +9,7 @@
 #include <cfloat>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <exception>
 #include <limits>
 #include <map>
@@ -565,6 +566,12 @@ TightenResult tighten(const Volume& mask, const TightenParams& p) {
     float* out = res.distance.data<float>();
     const float sign = p.positive_inside ? -1.f : 1.f;
     for (std::size_t c = 0; c < d.size(); ++c) out[c] = sign * d[c];
+    // Say so in the volume (NRRD keeps it): the tools that read farther out refuse it.
+    if (q.band_outside_only) {
+      char band[32];
+      std::snprintf(band, sizeof band, "%.17g", q.band);  // the band itself, not a rounded-up value
+      res.distance.set_key(p.positive_inside ? kExactNegativeKey : kExactPositiveKey, band);
+    }
   };
   const auto [dmin, dmax] = std::minmax_element(dS.begin(), dS.end());
   const bool outside_on_faces = outside_reaches_faces(dS, wd);
@@ -790,6 +797,7 @@ void tighten_labels(const Volume& lv, const TightenParams& p,
       for (std::size_t j = 0; j < od.ny; ++j)
         for (std::size_t i = 0; i < od.nx; ++i)
           dst[i + od.nx * (j + od.ny * k)] = src[(i + off) + fd.nx * ((j + off) + fd.ny * (k + off))];
+    for (const auto& [key, value] : full.keys()) o.set_key(key, value);  // the same values: the same band
     return o;
   };
   auto one_label = [&](std::size_t li) {

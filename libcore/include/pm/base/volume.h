@@ -23,6 +23,7 @@
 // micrometres are converted), otherwise the file's numbers as they are.
 #include <cstddef>
 #include <cstdint>
+#include <map>
 #include <string>
 #include <utility>
 #include <vector>
@@ -120,6 +121,17 @@ class Volume {
   /// Set by the volume readers: the frame the file's coordinates were in.
   const FrameSource& frame_source() const { return frame_source_; }
   void set_frame_source(FrameSource f) { frame_source_ = std::move(f); }
+  /// Key/value pairs about the voxels (NRRD's `key:=value` lines; the NRRD
+  /// reader and writer keep them, other formats drop them), e.g.
+  /// kExactPositiveKey. Copies of the volume keep them; derived volumes
+  /// (converted(), resampled, ...) start without.
+  const std::map<std::string, std::string>& keys() const { return keys_; }
+  void set_key(const std::string& key, const std::string& value) { keys_[key] = value; }
+  /// The value of `key`, or empty when the volume has none.
+  std::string key(const std::string& key) const {
+    const auto it = keys_.find(key);
+    return it == keys_.end() ? std::string() : it->second;
+  }
   std::size_t count() const { return dims_.count(); }
   bool empty() const { return count() == 0; }
 
@@ -155,8 +167,22 @@ class Volume {
   Dims dims_;
   Geometry geometry_;
   FrameSource frame_source_;
+  std::map<std::string, std::string> keys_;
   std::vector<unsigned char> bytes_;
 };
+
+/// Volume keys of a signed distance whose values on one side of the surface
+/// are exact only up to this distance from it (world units; beyond, they are
+/// correctly signed estimates within about a voxel): the positive side
+/// (tighten --outside-band: outside the material) and the negative side
+/// (with --positive-inside). Checked by the tools that read farther out.
+inline constexpr const char* kExactPositiveKey = "pm_exact_positive";
+inline constexpr const char* kExactNegativeKey = "pm_exact_negative";
+/// How far from the surface `sdf`'s values are exact on its positive side
+/// (positive_side) or its negative side: the key's value, or infinity when
+/// the volume has no such key. \throw InputError naming `what` when the
+/// key's value is not a number > 0.
+double exact_within(const Volume& sdf, bool positive_side, const std::string& what);
 
 /// The same volume with every flipped axis stored the other way round, for
 /// formats and libraries that hold only positive per-axis spacings (INR,
