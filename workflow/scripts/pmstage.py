@@ -314,7 +314,11 @@ class Stage:
             args += ["--min-voxels", v["MIN_VOXELS"]]
         # PAD auto: 3 voxels (times DOWNSAMPLE) where the border holds more than one label, of the
         # label holding most of the border (PAD_VALUE auto); a given PAD: a new label by default
-        pad = f"auto:{3 * int(v['DOWNSAMPLE'])}" if v["PAD"] == "auto" else v["PAD"]
+        try:  # as Makefile.ch6's PAD_EFF: 3 when DOWNSAMPLE is not an integer (morph then refuses it)
+            auto_pad = 3 * int(v["DOWNSAMPLE"])
+        except ValueError:
+            auto_pad = 3
+        pad = f"auto:{auto_pad}" if v["PAD"] == "auto" else v["PAD"]
         if pad != "0":
             args += ["--pad", pad, "--pad-value", v["PAD_VALUE"] or ("auto" if v["PAD"] == "auto" else "new")]
         self.run(args + self.flags + ["--stats", self.out("volconv.json")])
