@@ -89,6 +89,13 @@ void run_medialaxis(MedialAxisRun& cfg, const CommonFlags& flags) {
     st["parameters"]["iso"] = iso;
     st["parameters"]["inside"] = inside;
   }
+  if (std::isnan(iso)) {  // a mask or a grey-level scan given as it is: say what to do
+    try {
+      pm::require_distance_volume(sdf, "medial_axis: input");
+    } catch (const pm::InputError& e) {
+      throw pm::InputError(pm::quote(in) + ": " + e.what() + "; tighten a mask first, or give --iso for a grey-level volume");
+    }
+  }
   if (cfg.lfs_only) {
     p.max_distance = pm::medial_axis_lfs_bound(sdf);
     st["parameters"]["max_distance"] = std::isfinite(p.max_distance) ? pm::Json(p.max_distance) : pm::Json("all");
@@ -103,11 +110,7 @@ void run_medialaxis(MedialAxisRun& cfg, const CommonFlags& flags) {
     try {
       r = pm::medial_axis(sdf, p);
     } catch (const pm::InputError& e) {
-      // The hint is for a volume that is not a distance (a mask or a grey-level scan).
-      const bool banded = std::string(e.what()).find("--outside-band") != std::string::npos;
-      throw pm::InputError(pm::quote(in) + ": " + e.what() +
-                           (std::isnan(iso) && !banded ? "; tighten a mask first, or give --iso for a grey-level volume"
-                                                       : ""));
+      throw pm::InputError(pm::quote(in) + ": " + e.what());
     }
   }
   if (r.points.vertices.empty()) pm::warn("no medial-axis points found");

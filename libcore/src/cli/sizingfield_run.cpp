@@ -77,24 +77,11 @@ void run_sizingfield(SizingFieldRun& cfg, const CommonFlags& flags) {
                            pm::quote(sdfs[s]));
   });
   std::vector<pm::SizingSurface> surfaces;
-  for (std::size_t s = 0; s < sdfs.size(); ++s) surfaces.push_back({volumes[s], axes[s]});
+  for (std::size_t s = 0; s < sdfs.size(); ++s) surfaces.push_back({volumes[s], axes[s], sdfs[s]});
   pm::SizingFieldResult r;
   {
     pm::ScopedStage stage("sizingfield");
-    try {
-      r = pm::sizing_field(surfaces, p);
-    } catch (const pm::InputError& e) {  // "surface N" is the N-th --sdf: name its file
-      std::string m = e.what();
-      for (std::size_t s = sdfs.size(); s-- > 0;) {
-        const std::string tag = "surface " + std::to_string(s + 1) + ":";
-        const auto at = m.find(tag);
-        if (at != std::string::npos) {
-          m.replace(at, tag.size() - 1, "surface " + std::to_string(s + 1) + " (" + pm::quote(sdfs[s]) + ")");
-          break;
-        }
-      }
-      throw pm::InputError(m);
-    }
+    r = pm::sizing_field(surfaces, p);
   }
   pm::info(std::to_string(r.known) + " known nodes, h " + std::to_string(r.h_lo) + " to " + std::to_string(r.h_hi) +
            ", LFS " + std::to_string(r.lfs_lo) + " to " + std::to_string(r.lfs_hi) + " (world units)");

@@ -104,8 +104,9 @@ MedialAxisResult medial_axis(const Volume& sdf, const MedialAxisParams& p) {
     if (need > exact)
       throw InputError("medial_axis: input: its distances " + std::string(positive ? "outside" : "inside") +
                        " the surface are exact only within " + format_number(exact) +
-                       " of it (tighten --outside-band), but --side " + side + " reads them up to " +
-                       format_number(need) + " (world units); expected --side " + (positive ? "inside" : "outside") +
+                       " of it (tighten --outside-band), but --side " + side + " reads them " +
+                       (std::isfinite(need) ? "up to " + format_number(need) + " (world units)" : "everywhere") +
+                       "; expected --side " + (positive ? "inside" : "outside") +
                        " with a band of at least " + format_number(3.5 * diag + hmax) +
                        " (tighten --outside-band auto), or a distance without --outside-band");
   }

@@ -555,41 +555,28 @@ Indexed downsample_indices(const Indexed& x, int k) {
   o.values = x.values;
   o.dims = downsampled_dims(x.dims, k);
   o.idx.assign(o.dims.count(), kEmpty);
-  const Dims& in = x.dims;
-  const Dims& out = o.dims;
-  const std::size_t kk = std::size_t(k);
-  pm::parallel_for(tbb::blocked_range<std::size_t>(0, out.nz), [&](const tbb::blocked_range<std::size_t>& zr) {
-    std::vector<std::uint16_t> vals;
-    vals.reserve(kk * kk * kk);
-    for (std::size_t oz = zr.begin(); oz != zr.end(); ++oz)
-      for (std::size_t oy = 0; oy < out.ny; ++oy)
-        for (std::size_t ox = 0; ox < out.nx; ++ox) {
-          vals.clear();
-          const std::size_t x1 = std::min(in.nx, ox * kk + kk);
-          for (std::size_t z = oz * kk; z < std::min(in.nz, oz * kk + kk); ++z)
-            for (std::size_t y = oy * kk; y < std::min(in.ny, oy * kk + kk); ++y) {
-              const std::uint16_t* row = x.idx.data() + in.nx * (y + in.ny * z);
-              for (std::size_t i = ox * kk; i < x1; ++i)
-                if (row[i] != kEmpty) vals.push_back(row[i]);
-            }
-          if (vals.empty()) continue;
-          std::uint16_t best = vals[0];
-          if (std::find_if(vals.begin(), vals.end(), [&](std::uint16_t v) { return v != best; }) != vals.end()) {
-            std::sort(vals.begin(), vals.end());
-            best = vals[0];
-            std::size_t best_count = 0;
-            for (std::size_t a = 0; a < vals.size();) {
-              std::size_t b = a;
-              while (b < vals.size() && vals[b] == vals[a]) ++b;
-              if (b - a > best_count) {
-                best_count = b - a;
-                best = vals[a];
-              }
-              a = b;
-            }
-          }
-          o.idx[ox + out.nx * (oy + out.ny * oz)] = best;
+  for_blocks(x.dims, o.dims, k, [&](std::size_t oi, const std::vector<std::size_t>& block) {
+    thread_local std::vector<std::uint16_t> vals;  // no allocation per output voxel
+    vals.clear();
+    for (std::size_t b : block)
+      if (x.idx[b] != kEmpty) vals.push_back(x.idx[b]);
+    if (vals.empty()) return;
+    std::uint16_t best = vals[0];
+    if (std::find_if(vals.begin(), vals.end(), [&](std::uint16_t v) { return v != best; }) != vals.end()) {
+      std::sort(vals.begin(), vals.end());
+      best = vals[0];
+      std::size_t best_count = 0;
+      for (std::size_t a = 0; a < vals.size();) {
+        std::size_t b = a;
+        while (b < vals.size() && vals[b] == vals[a]) ++b;
+        if (b - a > best_count) {
+          best_count = b - a;
+          best = vals[a];
         }
+        a = b;
+      }
+    }
+    o.idx[oi] = best;
   });
   return o;
 }

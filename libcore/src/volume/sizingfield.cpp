@@ -139,8 +139,15 @@ SizingFieldResult sizing_field(const std::vector<SizingSurface>& surfaces, const
   if (surfaces.empty()) throw UsageError("sizing_field: no surfaces given");
 
   const Volume& first = surfaces.front().sdf;
+  const Dims& n = first.dims();
+  const Geometry& g = first.geometry();
+  const double hs = std::min(g.spacing(0), std::min(g.spacing(1), g.spacing(2)));
+  const double hmax = std::max(g.spacing(0), std::max(g.spacing(1), g.spacing(2)));
+  const double band = p.band * hs, C = 2 * p.eps / (p.contract ? p.contraction : 1.0);
+  const double floor = 1e-3 * hs;  // a known value stays > 0 even on a degenerate medial axis
   for (std::size_t s = 0; s < surfaces.size(); ++s) {
-    const std::string what = "sizing_field: surface " + std::to_string(s + 1);
+    const std::string what = "sizing_field: surface " + std::to_string(s + 1) +
+                             (surfaces[s].name.empty() ? "" : " (" + quote(surfaces[s].name) + ")");
     require_distance_volume(surfaces[s].sdf, what);
     if (surfaces[s].medial_axis.empty())
       throw InputError(what + ": the medial axis has no points; expected medial-axis points of that surface");
@@ -152,19 +159,9 @@ SizingFieldResult sizing_field(const std::vector<SizingSurface>& surfaces, const
         << "x" << a.ny << "x" << a.nz << ", or origin/spacing); expected every distance volume on one grid";
       throw InputError(m.str());
     }
-  }
-
-  const Dims& n = first.dims();
-  const Geometry& g = first.geometry();
-  const double hs = std::min(g.spacing(0), std::min(g.spacing(1), g.spacing(2)));
-  const double band = p.band * hs, C = 2 * p.eps / (p.contract ? p.contraction : 1.0);
-  const double floor = 1e-3 * hs;  // a known value stays > 0 even on a degenerate medial axis
-  // Nodes within the band and the reconstruction's taps around them (two
-  // voxels) read the distances: they must be exact there (see exact_within).
-  const double hmax = std::max(g.spacing(0), std::max(g.spacing(1), g.spacing(2)));
-  for (std::size_t s = 0; s < surfaces.size(); ++s)
+    // Nodes within the band and the reconstruction's taps around them (two
+    // voxels) read the distances: they must be exact there (see exact_within).
     for (const bool positive : {true, false}) {
-      const std::string what = "sizing_field: surface " + std::to_string(s + 1);
       const double exact = exact_within(surfaces[s].sdf, positive, what), need = band + 2 * hmax;
       if (need > exact)
         throw InputError(what + ": its distances " + (positive ? "outside" : "inside") +
@@ -173,6 +170,7 @@ SizingFieldResult sizing_field(const std::vector<SizingSurface>& surfaces, const
                          " voxels reads them up to " + format_number(need) +
                          " (world units); expected a smaller --band or a wider --outside-band");
     }
+  }
   SizingFieldResult res;
   res.h = Volume(VoxelType::f32, n, g);
   res.lfs = Volume(VoxelType::f32, n, g);

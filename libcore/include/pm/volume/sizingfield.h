@@ -18,6 +18,7 @@
 // Several surfaces (Chapter 6: one distance volume and medial axis per
 // material) give the minimum over the surfaces that know a node.
 #include <cstddef>
+#include <string>
 #include <vector>
 
 #include "pm/base/volume.h"
@@ -38,6 +39,7 @@ struct SizingFieldParams {
 struct SizingSurface {
   const Volume& sdf;
   const std::vector<Vec3>& medial_axis;
+  std::string name = {};  ///< its file, named in errors after "surface N" (empty: none)
 };
 
 struct SizingFieldResult {
