@@ -38,6 +38,8 @@ pm_cli_test(volconv.labels_absent "volconv: error: .*none of the labels 7 occurs
 pm_cli_test(volconv.bad_merge "volconv: usage error: merge rule .*malformed" ${VC} ${D}/onevoxel.nrrd /tmp/pm_x.nrrd --merge "1,2")
 pm_cli_test(volconv.help_example "Example:.*volconv" ${VC} --help)
 pm_cli_script(volconv.workflow volconv_test.sh)
+# Every tool: large buffers on transparent huge pages (run_tool.cpp), same bytes either way.
+pm_cli_script(tools.huge_pages huge_pages_test.sh)
 # World frame (issue 21): NRRD spaces that cannot be taken to LPS; every format pair
 # against nibabel / independent header readers (exit 77 = skipped without nibabel).
 pm_cli_test(volconv.space_conflict "volconv: error: read_nrrd: .*space_conflict.nrrd" ${VC} ${D}/space_conflict.nrrd /tmp/pm_x.nrrd)
