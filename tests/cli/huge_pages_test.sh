@@ -5,7 +5,8 @@
 # "huge_pages" and counts minor page faults. Checked here: the flag follows
 # the kernel's mode, PM_HUGE_PAGES=0 and a user's own hugetlb tunable are
 # respected, other tunables are kept, the 16 MiB volumes of the run take far
-# fewer page faults, and the outputs are the same bytes either way.
+# fewer page faults, the process keeps its pid and name, and the outputs are
+# the same bytes either way.
 set -euo pipefail
 BIN=$1; SRC=$2
 T=$(mktemp -d); trap 'rm -rf "$T"' EXIT
@@ -38,6 +39,21 @@ for name in off user_off other; do
   cmp "$T/default.nrrd" "$T/$name.nrrd"
   cmp "$T/default.h.nrrd" "$T/$name.h.nrrd"
 done
+
+# The process a tool executes again keeps its pid and its name (ps, top and
+# pkill see "volconv", not "exe"), and its environment has the tunable.
+PM_TEST_HOLD=commit PM_TEST_HOLD_SECONDS=30 "$BIN/volconv" "$T/big.nrrd" "$T/held.nrrd" 2> "$T/held.log" &
+pid=$!
+for _ in $(seq 300); do grep -q "test hold at commit" "$T/held.log" && break; sleep 0.1; done
+grep -q "test hold at commit" "$T/held.log"
+comm=$(cat /proc/$pid/comm)
+env_has=$(tr '\0' '\n' < /proc/$pid/environ | grep -c '^GLIBC_TUNABLES=.*glibc.malloc.hugetlb=1' || true)
+kill -TERM $pid; wait $pid || true
+[ "$comm" = volconv ] || { echo "process name after re-exec: '$comm', expected volconv"; exit 1; }
+if [ "$mode" = madvise ]; then
+  [ "$env_has" = 1 ] || { echo "GLIBC_TUNABLES of the running tool lacks glibc.malloc.hugetlb=1"; exit 1; }
+fi
+[ ! -e "$T/held.nrrd" ]
 
 $PY - "$T" "$mode" <<'PY'
 import json, sys

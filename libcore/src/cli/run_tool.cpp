@@ -62,7 +62,7 @@ void on_signal(int sig) {
 // for them (/sys/kernel/mm/transparent_hugepage/enabled = madvise), glibc
 // (>= 2.35) asks for its large blocks when the tunable glibc.malloc.hugetlb=1
 // is set, which glibc reads only at start-up: the tool sets it and executes
-// itself again, once (same process id, arguments and descriptors). Not when
+// itself again, once (same process id, name, arguments and descriptors). Not when
 // GLIBC_TUNABLES already says anything about hugetlb (the user's choice),
 // with PM_HUGE_PAGES=0, or where it cannot help (THP always or never, an
 // older glibc). Returns whether large blocks go on huge pages.
@@ -97,7 +97,14 @@ bool huge_pages_or_reexec(char** argv) {
   const std::string old = tunables != nullptr ? tunables : "";
   const std::string value = (old.empty() ? "" : old + ":") + kHugeTunable + "=1";
   if (::setenv("GLIBC_TUNABLES", value.c_str(), 1) != 0) return false;
-  ::execv("/proc/self/exe", argv);
+  // The binary's own path, not /proc/self/exe: the process keeps its name
+  // (ps, top, pkill show "tighten", not "exe").
+  char self[4096];
+  const ssize_t len = ::readlink("/proc/self/exe", self, sizeof self - 1);
+  if (len > 0) {
+    self[len] = '\0';
+    ::execv(self, argv);
+  }
   // Could not execute itself (no /proc): go on with small pages.
   if (tunables != nullptr)
     ::setenv("GLIBC_TUNABLES", old.c_str(), 1);
