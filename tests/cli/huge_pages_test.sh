@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Large buffers on transparent huge pages (libcore/src/cli/run_tool.cpp): where
 # the kernel gives huge pages to memory that asks for them (THP "madvise"), a
-# tool sets glibc.malloc.hugetlb=1 and executes itself again; --stats says
+# tool sets glibc.malloc.hugetlb=1 (and glibc.malloc.arena_max=1) and
+# executes itself again; --stats says
 # "huge_pages" and counts minor page faults. Checked here: the flag follows
 # the kernel's mode, PM_HUGE_PAGES=0 and a user's own hugetlb tunable are
 # respected, other tunables are kept, the 16 MiB volumes of the run take far
@@ -41,19 +42,35 @@ for name in off user_off other; do
 done
 
 # The process a tool executes again keeps its pid and its name (ps, top and
-# pkill see "volconv", not "exe"), and its environment has the tunable.
+# pkill see "volconv", not "exe"), and its environment has the tunables
+# (huge pages, and one malloc arena: glibc advises huge pages only there).
 PM_TEST_HOLD=commit PM_TEST_HOLD_SECONDS=30 "$BIN/volconv" "$T/big.nrrd" "$T/held.nrrd" 2> "$T/held.log" &
 pid=$!
 for _ in $(seq 300); do grep -q "test hold at commit" "$T/held.log" && break; sleep 0.1; done
 grep -q "test hold at commit" "$T/held.log"
 comm=$(cat /proc/$pid/comm)
-env_has=$(tr '\0' '\n' < /proc/$pid/environ | grep -c '^GLIBC_TUNABLES=.*glibc.malloc.hugetlb=1' || true)
+# (glibc parses GLIBC_TUNABLES in place: the environment block may show its
+# ':' separators as NULs, so look at the tokens.)
+tokens() { tr '\0:' '\n\n' < /proc/$1/environ | sed 's/^GLIBC_TUNABLES=//' | grep '^glibc\.' | sort | tr '\n' ' '; }
+env_tokens=$(tokens $pid)
 kill -TERM $pid; wait $pid || true
 [ "$comm" = volconv ] || { echo "process name after re-exec: '$comm', expected volconv"; exit 1; }
 if [ "$mode" = madvise ]; then
-  [ "$env_has" = 1 ] || { echo "GLIBC_TUNABLES of the running tool lacks glibc.malloc.hugetlb=1"; exit 1; }
+  [ "$env_tokens" = "glibc.malloc.arena_max=1 glibc.malloc.hugetlb=1 " ] ||
+    { echo "GLIBC_TUNABLES of the running tool: '$env_tokens', expected hugetlb=1 and arena_max=1"; exit 1; }
 fi
 [ ! -e "$T/held.nrrd" ]
+# A user's own tunables stay, and their arena_max is not overridden.
+GLIBC_TUNABLES=glibc.malloc.arena_max=4 PM_TEST_HOLD=commit PM_TEST_HOLD_SECONDS=30 \
+  "$BIN/volconv" "$T/big.nrrd" "$T/held.nrrd" 2> "$T/held.log" &
+pid=$!
+for _ in $(seq 300); do grep -q "test hold at commit" "$T/held.log" && break; sleep 0.1; done
+tunables=$(tokens $pid)
+kill -TERM $pid; wait $pid || true
+if [ "$mode" = madvise ]; then
+  [ "$tunables" = "glibc.malloc.arena_max=4 glibc.malloc.hugetlb=1 " ] ||
+    { echo "GLIBC_TUNABLES of the running tool: '$tunables', expected the user's arena_max=4 kept"; exit 1; }
+fi
 
 $PY - "$T" "$mode" <<'PY'
 import json, sys
