@@ -494,8 +494,32 @@ CASES["hp"] = case_hp
 OPT_IN = {"hp", "tets", "frognative"}  # run only when named: scripts/bench hp tets frognative
 
 
+def memory_setting():
+    """How the tools' memory is backed in this run (README, conventions: large buffers on huge pages): the
+    kernel's transparent-huge-page mode and whether a tool reports huge pages. Page faults cost a quarter to a
+    third of the pipelines' time on this project's virtual machine without them, so runs are only comparable
+    with the same setting."""
+    try:
+        with open("/sys/kernel/mm/transparent_hugepage/enabled") as f:
+            line = f.read()
+        mode = line[line.index("[") + 1:line.index("]")]
+    except (OSError, ValueError):
+        mode = "unknown"
+    on = None
+    with tempfile.TemporaryDirectory() as tmp:
+        p = subprocess.run([os.path.join(BIN, "volconv"), os.path.join(ROOT, "tests", "data", "onevoxel.nrrd"),
+                            os.path.join(tmp, "x.nrrd"), "--stats", "-", "-q"], capture_output=True, text=True)
+        if p.returncode == 0:
+            on = json.loads(p.stdout).get("huge_pages")
+    return dict(thp=mode, tools_on_huge_pages=on, glibc_tunables=os.environ.get("GLIBC_TUNABLES", ""),
+                pm_huge_pages=os.environ.get("PM_HUGE_PAGES", ""))
+
+
 def main():
     wanted = sys.argv[1:] or [c for c in CASES if c not in OPT_IN]
+    memory = memory_setting()
+    print(f"bench: transparent huge pages {memory['thp']}; the tools run on huge pages: "
+          f"{ {True: 'yes', False: 'no', None: 'unknown'}[memory['tools_on_huge_pages']] }", file=sys.stderr)
     for c in wanted:
         if c not in CASES:
             sys.exit(f"bench: unknown case {c!r}; expected one of {', '.join(CASES)}")
@@ -515,7 +539,7 @@ def main():
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     path = os.path.join(ROOT, "bench-results", f"{stamp}.json")
     with open(path, "w") as f:
-        json.dump(dict(date=stamp, cpus=os.cpu_count(), rows=rows), f, indent=2)
+        json.dump(dict(date=stamp, cpus=os.cpu_count(), memory=memory, rows=rows), f, indent=2)
     print(f"\nbench: results in {os.path.relpath(path, ROOT)}")
 
 
