@@ -70,9 +70,9 @@ void on_signal(int sig) {
 // lock is not contended). glibc reads tunables only at start-up: the tool sets
 // them and executes itself again, once (same process id, name, arguments and
 // descriptors). Not when GLIBC_TUNABLES already says anything about hugetlb
-// (the user's choice), with PM_HUGE_PAGES=0, or where it cannot help (THP
-// always or never, an older glibc). Returns whether large blocks go on huge
-// pages.
+// (the user's choice), with PM_HUGE_PAGES=0, under valgrind or in a
+// sanitizer build, or where it cannot help (THP always or never, an older
+// glibc). Returns whether large blocks go on huge pages.
 const char kHugeTunable[] = "glibc.malloc.hugetlb";
 
 std::string thp_mode() {
@@ -88,7 +88,18 @@ bool glibc_has_hugetlb_tunable() {
   return std::sscanf(gnu_get_libc_version(), "%d.%d", &major, &minor) == 2 && (major > 2 || (major == 2 && minor >= 35));
 }
 
+// Valgrind runs the program itself; it would not follow the second execution
+// (--trace-children=no), and the user would lose the check without noticing.
+bool under_valgrind() {
+  const char* pre = std::getenv("LD_PRELOAD");
+  return pre != nullptr && std::strstr(pre, "vgpreload") != nullptr;
+}
+
 bool huge_pages_or_reexec(char** argv) {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  (void)argv;
+  return false;  // the sanitizers' allocators ignore glibc's tunables
+#endif
   const std::string mode = thp_mode();
   if (mode == "always") return true;
   const char* tunables = std::getenv("GLIBC_TUNABLES");
@@ -99,7 +110,8 @@ bool huge_pages_or_reexec(char** argv) {
     }
   }
   const char* opt = std::getenv("PM_HUGE_PAGES");
-  if (mode != "madvise" || (opt != nullptr && std::strcmp(opt, "0") == 0) || !glibc_has_hugetlb_tunable())
+  if (mode != "madvise" || (opt != nullptr && std::strcmp(opt, "0") == 0) || !glibc_has_hugetlb_tunable() ||
+      under_valgrind())
     return false;
   const std::string old = tunables != nullptr ? tunables : "";
   std::string value = (old.empty() ? "" : old + ":") + kHugeTunable + "=1";
