@@ -95,11 +95,18 @@ bool under_valgrind() {
   return pre != nullptr && std::strstr(pre, "vgpreload") != nullptr;
 }
 
+// Set for the second execution only, so that nothing can make a tool execute
+// itself again and again.
+const char kReexecMark[] = "PM_HUGE_PAGES_REEXECUTED";
+
 bool huge_pages_or_reexec(char** argv) {
+  const bool again = std::getenv(kReexecMark) != nullptr;
+  if (again) ::unsetenv(kReexecMark);
 #if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
   (void)argv;
+  (void)again;
   return false;  // the sanitizers' allocators ignore glibc's tunables
-#endif
+#else
   const std::string mode = thp_mode();
   if (mode == "always") return true;
   const char* tunables = std::getenv("GLIBC_TUNABLES");
@@ -110,13 +117,13 @@ bool huge_pages_or_reexec(char** argv) {
     }
   }
   const char* opt = std::getenv("PM_HUGE_PAGES");
-  if (mode != "madvise" || (opt != nullptr && std::strcmp(opt, "0") == 0) || !glibc_has_hugetlb_tunable() ||
-      under_valgrind())
+  if (again || mode != "madvise" || (opt != nullptr && std::strcmp(opt, "0") == 0) ||
+      !glibc_has_hugetlb_tunable() || under_valgrind())
     return false;
   const std::string old = tunables != nullptr ? tunables : "";
   std::string value = (old.empty() ? "" : old + ":") + kHugeTunable + "=1";
   if (old.find("glibc.malloc.arena_max") == std::string::npos) value += ":glibc.malloc.arena_max=1";
-  if (::setenv("GLIBC_TUNABLES", value.c_str(), 1) != 0) return false;
+  if (::setenv("GLIBC_TUNABLES", value.c_str(), 1) != 0 || ::setenv(kReexecMark, "1", 1) != 0) return false;
   // The binary's own path, not /proc/self/exe: the process keeps its name
   // (ps, top, pkill show "tighten", not "exe").
   char self[4096];
@@ -126,11 +133,13 @@ bool huge_pages_or_reexec(char** argv) {
     ::execv(self, argv);
   }
   // Could not execute itself (no /proc): go on with small pages.
+  ::unsetenv(kReexecMark);
   if (tunables != nullptr)
     ::setenv("GLIBC_TUNABLES", old.c_str(), 1);
   else
     ::unsetenv("GLIBC_TUNABLES");
   return false;
+#endif
 }
 
 class HelpFormatter : public CLI::Formatter {
