@@ -53,26 +53,6 @@ void on_signal(int sig) {
   std::raise(sig);
 }
 
-// Large buffers on transparent huge pages. The tools allocate volumes of
-// tens of megabytes and touch every page once; with the kernel's default
-// 4 KiB pages each first touch is a page fault, and on a virtual machine
-// those faults took a quarter to a third of the pipelines' wall time (frog5
-// `make materials` 18.5-20.7 -> 13.2-16.4 s, the brain `surface` 48.9-52.5
-// -> 32.1-34.5 s, the same output bytes). Where the kernel gives huge pages
-// only to memory that asks for them (/sys/kernel/mm/transparent_hugepage/
-// enabled = madvise), glibc (>= 2.35) asks for its large blocks when the
-// tunable glibc.malloc.hugetlb=1 is set. It asks only in its main arena and
-// for blocks it maps on their own, not in the arenas it makes for other
-// threads, which also unmap and map again whole 64 MiB heaps as they empty
-// and fill: so glibc.malloc.arena_max=1 too (unless the user set it), and
-// every thread allocates from the main arena (frog5's tighten 70k -> 5k page
-// faults, 2.9 -> 2.5 s; the hot loops allocate nothing, so the one arena's
-// lock is not contended). glibc reads tunables only at start-up: the tool sets
-// them and executes itself again, once (same process id, name, arguments and
-// descriptors). Not when GLIBC_TUNABLES already says anything about hugetlb
-// (the user's choice), with PM_HUGE_PAGES=0, under valgrind or in a
-// sanitizer build, or where it cannot help (THP always or never, an older
-// glibc). Returns whether large blocks go on huge pages.
 const char kHugeTunable[] = "glibc.malloc.hugetlb";
 
 std::string thp_mode() {
@@ -99,6 +79,26 @@ bool under_valgrind() {
 // itself again and again.
 const char kReexecMark[] = "PM_HUGE_PAGES_REEXECUTED";
 
+// Large buffers on transparent huge pages. The tools allocate volumes of
+// tens of megabytes and touch every page once; with the kernel's default
+// 4 KiB pages each first touch is a page fault, and on a virtual machine
+// those faults took a quarter to a third of the pipelines' wall time (frog5
+// `make materials` 18.5-20.7 -> 13.2-16.4 s, the brain `surface` 48.9-52.5
+// -> 32.1-34.5 s, the same output bytes). Where the kernel gives huge pages
+// only to memory that asks for them (/sys/kernel/mm/transparent_hugepage/
+// enabled = madvise), glibc (>= 2.35) asks for its large blocks when the
+// tunable glibc.malloc.hugetlb=1 is set. It asks only in its main arena and
+// for blocks it maps on their own, not in the arenas it makes for other
+// threads, which also unmap and map again whole 64 MiB heaps as they empty
+// and fill: so glibc.malloc.arena_max=1 too (unless the user set it), and
+// every thread allocates from the main arena (frog5's tighten 70k -> 5k page
+// faults, 2.9 -> 2.5 s; the hot loops allocate nothing, so the one arena's
+// lock is not contended). glibc reads tunables only at start-up: the tool sets
+// them and executes itself again, once (same process id, name, arguments and
+// descriptors). Not when GLIBC_TUNABLES already says anything about hugetlb
+// (the user's choice), with PM_HUGE_PAGES=0, under valgrind or in a
+// sanitizer build, or where it cannot help (THP always or never, an older
+// glibc). Returns whether large blocks go on huge pages.
 bool huge_pages_or_reexec(char** argv) {
   const bool again = std::getenv(kReexecMark) != nullptr;
   if (again) ::unsetenv(kReexecMark);
